@@ -1,0 +1,5 @@
+import sys
+
+from carbody.cli import main
+
+sys.exit(main())

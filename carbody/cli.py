@@ -1,0 +1,46 @@
+"""The ``carbody`` command: a thin layer over the library, one subcommand per stage.
+
+Each stage keeps its subcommands in its own ``cli`` module with an ``add_parsers(subparsers)``
+function; handlers import their heavy dependencies (OCP, torch, VTK) when they run, so
+``carbody --help`` stays instant. Any :class:`~carbody.errors.CarbodyError` becomes one line on
+stderr and exit code 2.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from carbody.errors import CarbodyError
+
+#: Modules that register subcommands, in the order they appear in ``--help``.
+COMMAND_MODULES = (
+    "carbody.templates.cli",
+    "carbody.library_cli",
+    "carbody.demo",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="carbody",
+        description="One photo of a car -> an editable CAD car body (Bezier wireframe + Bezier shell) in STEP.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).add_parsers(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except CarbodyError as exc:
+        print(f"carbody {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,20 @@
+"""Typed exceptions: every bad input the API refuses raises one of these.
+
+The CLI turns any :class:`CarbodyError` into one line on stderr and exit code 2.
+"""
+
+
+class CarbodyError(ValueError):
+    """Base class: a bad input, named in one line."""
+
+
+class TopologyError(CarbodyError):
+    """The wireframe topology data is inconsistent."""
+
+
+class TemplateError(CarbodyError):
+    """A template (design table or STEP file) is missing, corrupt or mis-structured."""
+
+
+class LibraryError(CarbodyError):
+    """The model library cannot be built from the templates."""

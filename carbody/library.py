@@ -1,0 +1,223 @@
+"""The model library (paper II.E): normalised templates expanded by axis scalings into S.
+
+Each template is normalised so its front wheel centre is (y, z) = (0, 0) and its rear wheel
+centre (1000, 0); x scales by the same factor. Expansion, as the paper does it:
+
+1. heights: z of points above the wheel-centre line x {0.7, 0.8, 0.9, 1.1, 1.2}   (14 -> 84)
+2. overhangs: the front overhang x {0.8, 0.9, 1.1} and, separately, the rear    (84 -> 588)
+   overhang x {0.8, 0.9, 1.1}, each about its own boundary point (the front of the front
+   wheel arch, the rear of the rear one), so curves stay joined
+3. widths: all x x {0.7, 0.8, 0.9, 1.1, 1.2}                                    (588 -> 3528)
+
+Every scaling is a continuous map of space, so curve ends that coincide before still coincide
+after. The shape matrix S is (3 x 280, N) = (840, N): column j is model j's shape vector
+(x1, y1, z1, ..., x280, y280, z280). S is cached on disk, keyed by the template files' bytes and
+the expansion factors, and rebuilt when either changes.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from carbody.errors import LibraryError
+from carbody.tolerances import NORMALISED_WHEELBASE
+from carbody.topology import Topology, load_topology
+from carbody.wireframe import wheel_centre
+
+#: Cache format version: bump when the normalisation or expansion code changes meaning.
+CACHE_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Expansion:
+    """Scale factors of the three expansion steps (the original, factor 1, is always kept)."""
+
+    height: tuple[float, ...] = (0.7, 0.8, 0.9, 1.1, 1.2)
+    front_overhang: tuple[float, ...] = (0.8, 0.9, 1.1)
+    rear_overhang: tuple[float, ...] = (0.8, 0.9, 1.1)
+    width: tuple[float, ...] = (0.7, 0.8, 0.9, 1.1, 1.2)
+
+    @property
+    def models_per_template(self) -> int:
+        return ((1 + len(self.height)) * (1 + len(self.front_overhang) + len(self.rear_overhang))
+                * (1 + len(self.width)))
+
+
+@dataclass
+class Library:
+    """N library models in normalised units.
+
+    Attributes:
+        S: (840, N) float, normalised shape vectors as columns.
+        template_names: the templates, in order.
+        template_index: (N,) int, each model's template.
+        factors: (N, 4) float, each model's (height, front overhang, rear overhang, width) factor.
+        template_wheelbase_mm: (T,) float, each template's real wheelbase.
+    """
+
+    S: np.ndarray
+    template_names: list[str]
+    template_index: np.ndarray
+    factors: np.ndarray
+    template_wheelbase_mm: np.ndarray
+    template_classes: list[str] = field(default_factory=list)
+
+    @property
+    def n_models(self) -> int:
+        return self.S.shape[1]
+
+    @property
+    def model_wheelbase_mm(self) -> np.ndarray:
+        """(N,) float: the real wheelbase of each model (its template's)."""
+        return self.template_wheelbase_mm[self.template_index]
+
+    def points(self, j: int) -> np.ndarray:
+        """(280, 3) normalised control points of model ``j``."""
+        return self.S[:, j].reshape(-1, 3)
+
+    def without(self, template: str) -> "Library":
+        """This library less one template and all its expansions (leave-one-out)."""
+        if template not in self.template_names:
+            raise LibraryError(f"unknown template {template!r} (known: {', '.join(self.template_names)})")
+        drop = self.template_names.index(template)
+        keep = self.template_index != drop
+        remap = np.array([i - (i > drop) for i in range(len(self.template_names))])
+        return Library(
+            S=self.S[:, keep],
+            template_names=[n for i, n in enumerate(self.template_names) if i != drop],
+            template_index=remap[self.template_index[keep]],
+            factors=self.factors[keep],
+            template_wheelbase_mm=np.delete(self.template_wheelbase_mm, drop),
+            template_classes=[c for i, c in enumerate(self.template_classes) if i != drop],
+        )
+
+
+def normalise(points_mm: np.ndarray, topology: Topology | None = None) -> np.ndarray:
+    """Move, level and scale a wireframe so its wheel centres are (0, 0) and (1000, 0).
+
+    Args:
+        points_mm: (280, 3) float, mm, car frame.
+    Returns:
+        (280, 3) float, normalised units (x scaled by the same factor as y and z).
+    """
+    topo = topology or load_topology()
+    front = wheel_centre(points_mm, topo, "front")
+    rear = wheel_centre(points_mm, topo, "rear")
+    axis = rear - front
+    wheelbase = float(np.hypot(*axis))
+    if wheelbase <= 0:
+        raise LibraryError("wheel centres coincide: cannot normalise")
+    c, s = axis / wheelbase
+    rot = np.array([[c, s], [-s, c]])  # rotates the wheel axis onto +y in the yz plane
+    out = np.empty_like(points_mm, dtype=float)
+    scale = NORMALISED_WHEELBASE / wheelbase
+    out[:, 0] = points_mm[:, 0] * scale
+    out[:, 1:] = (points_mm[:, 1:] - front) @ rot.T * scale
+    return out
+
+
+def expand(models: np.ndarray, expansion: Expansion = Expansion(), topology: Topology | None = None):
+    """Expand normalised models by the paper's three scalings.
+
+    Args:
+        models: (T, 280, 3) float, normalised.
+    Returns:
+        (points (T * M, 280, 3), template index (T * M,), factors (T * M, 4)); M per template.
+    """
+    topo = topology or load_topology()
+    front_b = topo.junction_point_index(topo.overhang_boundaries["front"])
+    rear_b = topo.junction_point_index(topo.overhang_boundaries["rear"])
+    out, index, factors = [], [], []
+    for t, base in enumerate(models):
+        for fz in (1.0, *expansion.height):
+            tall = base.copy()
+            tall[:, 2] = np.where(tall[:, 2] > 0, tall[:, 2] * fz, tall[:, 2])
+            y_front, y_rear = tall[front_b, 1], tall[rear_b, 1]
+            overhangs = [(1.0, 1.0)] + [(f, 1.0) for f in expansion.front_overhang] + \
+                        [(1.0, f) for f in expansion.rear_overhang]
+            for ff, fr in overhangs:
+                long = tall.copy()
+                y = long[:, 1]
+                long[:, 1] = np.where(y < y_front, y_front + ff * (y - y_front),
+                                      np.where(y > y_rear, y_rear + fr * (y - y_rear), y))
+                for fx in (1.0, *expansion.width):
+                    wide = long.copy()
+                    wide[:, 0] *= fx
+                    out.append(wide)
+                    index.append(t)
+                    factors.append((fz, ff, fr, fx))
+    return np.array(out), np.array(index), np.array(factors)
+
+
+def cache_dir() -> Path:
+    """Where S is cached: ``$CARBODY_CACHE_DIR`` or ``~/.cache/carbody``."""
+    env = os.environ.get("CARBODY_CACHE_DIR")
+    return Path(env) if env else Path.home() / ".cache" / "carbody"
+
+
+def _cache_key(folder: Path, rows: list[dict], expansion: Expansion) -> str:
+    digest = hashlib.sha256(f"v{CACHE_VERSION}|{expansion}".encode())
+    digest.update((folder / "manifest.json").read_bytes())
+    for row in rows:
+        digest.update((folder / row["file"]).read_bytes())
+    return digest.hexdigest()[:20]
+
+
+def build_library(folder: str | Path | None = None, expansion: Expansion = Expansion()) -> Library:
+    """Read the templates' STEP files, normalise and expand them (no cache)."""
+    from carbody.templates import load_templates, templates_dir
+
+    topo = load_topology()
+    templates = load_templates(folder or templates_dir())
+    if not templates:
+        raise LibraryError("the template manifest lists no templates")
+    base = np.array([normalise(w.control_points, topo) for _, w in templates])
+    points, index, factors = expand(base, expansion, topo)
+    wheelbases = np.array([w.measure()["wheelbase_mm"] for _, w in templates])
+    return Library(
+        S=np.ascontiguousarray(points.reshape(len(points), -1).T),
+        template_names=[row["name"] for row, _ in templates],
+        template_index=index,
+        factors=factors,
+        template_wheelbase_mm=wheelbases,
+        template_classes=[row["class"] for row, _ in templates],
+    )
+
+
+def load_library(folder: str | Path | None = None, expansion: Expansion = Expansion(),
+                 use_cache: bool = True) -> Library:
+    """The library, from the disk cache when the templates and factors are unchanged.
+
+    Args:
+        folder: template folder (default :func:`carbody.templates.templates_dir`).
+        expansion: scale factors of the expansion.
+        use_cache: read and write the cache in :func:`cache_dir`.
+    """
+    from carbody.templates import load_manifest, templates_dir
+
+    folder = Path(folder) if folder else templates_dir()
+    if not use_cache:
+        return build_library(folder, expansion)
+    key = _cache_key(folder, load_manifest(folder), expansion)
+    path = cache_dir() / f"library-{key}.npz"
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return Library(S=z["S"], template_names=[str(n) for n in z["template_names"]],
+                               template_index=z["template_index"], factors=z["factors"],
+                               template_wheelbase_mm=z["template_wheelbase_mm"],
+                               template_classes=[str(c) for c in z["template_classes"]])
+        except (OSError, KeyError, ValueError):
+            path.unlink(missing_ok=True)  # a damaged cache is rebuilt
+    lib = build_library(folder, expansion)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+    np.savez(tmp, S=lib.S, template_names=np.array(lib.template_names), template_index=lib.template_index,
+             factors=lib.factors, template_wheelbase_mm=lib.template_wheelbase_mm,
+             template_classes=np.array(lib.template_classes))
+    os.replace(tmp, path)
+    return lib

@@ -1,0 +1,99 @@
+"""The template library: real cars as STEP wireframes in ``templates_step/`` with a manifest.
+
+``build_templates`` writes them from the design table (:mod:`carbody.templates.design`);
+everything downstream reads the STEP files, so a template edited in another CAD system and saved
+back is used as it is.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+from carbody.errors import TemplateError
+from carbody.wireframe import Wireframe, read_wireframe
+
+MANIFEST = "manifest.json"
+
+
+def templates_dir() -> Path:
+    """Folder of the template STEP files: ``$CARBODY_TEMPLATES_DIR`` or the repository's."""
+    env = os.environ.get("CARBODY_TEMPLATES_DIR")
+    return Path(env) if env else Path(__file__).resolve().parents[2] / "templates_step"
+
+
+def slug(name: str) -> str:
+    """File stem for a car name: ``"Toyota Camry XV70"`` -> ``"toyota_camry_xv70"``."""
+    return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+
+
+def load_manifest(folder: str | Path | None = None) -> list[dict]:
+    """The manifest rows: name, class, published dimensions (mm), file, source."""
+    folder = Path(folder) if folder else templates_dir()
+    path = folder / MANIFEST
+    try:
+        rows = json.loads(path.read_text())
+    except OSError:
+        raise TemplateError(f"{path}: no template manifest (run `carbody templates build`)") from None
+    except json.JSONDecodeError as exc:
+        raise TemplateError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
+    return rows
+
+
+def find_template(name: str, folder: str | Path | None = None) -> dict:
+    """The manifest row of a car, by its name or file stem (case-insensitive)."""
+    rows = load_manifest(folder)
+    key = slug(name)
+    for row in rows:
+        if slug(row["name"]) == key or Path(row["file"]).stem == key:
+            return row
+    raise TemplateError(f"unknown template {name!r} (known: {', '.join(r['name'] for r in rows)})")
+
+
+def load_template(name: str, folder: str | Path | None = None) -> Wireframe:
+    """One template's wireframe, read from its STEP file."""
+    folder = Path(folder) if folder else templates_dir()
+    return read_wireframe(folder / find_template(name, folder)["file"])
+
+
+def load_templates(folder: str | Path | None = None) -> list[tuple[dict, Wireframe]]:
+    """Every template (manifest row, wireframe); any bad file refuses the whole set."""
+    folder = Path(folder) if folder else templates_dir()
+    return [(row, read_wireframe(folder / row["file"])) for row in load_manifest(folder)]
+
+
+def build_templates(out_dir: str | Path | None = None, design_table: str | Path | None = None) -> list[dict]:
+    """Build every car of the design table and write ``NAME.step`` files and the manifest.
+
+    Returns:
+        the manifest rows written.
+    """
+    from carbody.templates.design import build_wireframe, load_design_tables
+    from carbody.wireframe import write_wireframe
+
+    out = Path(out_dir) if out_dir else templates_dir()
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for d in load_design_tables(design_table):
+        points = build_wireframe(d)
+        file = f"{slug(d.name)}.step"
+        write_wireframe(out / file, Wireframe(d.name, points))
+        rows.append({
+            "name": d.name, "class": d.car_class, "file": file,
+            "length_mm": d.length, "width_mm": d.width, "height_mm": d.height,
+            "wheelbase_mm": d.wheelbase, "front_overhang_mm": d.front_overhang,
+            "rear_overhang_mm": d.rear_overhang, "track_front_mm": d.track_front,
+            "track_rear_mm": d.track_rear, "tyre_radius_mm": d.tyre_radius,
+            "ground_clearance_mm": d.ground_clearance, "source": d.source,
+        })
+    text = json.dumps(rows, indent=1) + "\n"
+    (out / MANIFEST).write_text(text)
+    return rows
+
+
+def measure_template(row: dict, wireframe: Wireframe) -> dict[str, float]:
+    """Length, width, height (above the ground, from the manifest's tyre radius), wheelbase; mm."""
+    m = wireframe.measure()
+    return {"length_mm": m["length_mm"], "width_mm": m["width_mm"],
+            "height_mm": m["top_z_mm"] + row["tyre_radius_mm"], "wheelbase_mm": m["wheelbase_mm"]}

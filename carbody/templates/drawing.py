@@ -1,0 +1,84 @@
+"""Four-view drawing of a wireframe with its keypoints labelled (the paper's Fig. 2 and Fig. 6)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from carbody.topology import POINTS_PER_CURVE, Topology, load_topology
+
+#: (title, horizontal axis, vertical axis, draw both halves) per view; an axis is (coordinate, sign).
+VIEWS = (
+    ("side (left)", (1, 1.0), (2, 1.0), False),
+    ("front", (0, 1.0), (2, 1.0), True),
+    ("top", (1, 1.0), (0, -1.0), True),
+    ("rear", (0, -1.0), (2, 1.0), True),
+)
+
+
+def sample_curves(control_points: np.ndarray, samples: int = 24) -> np.ndarray:
+    """Points along every cubic Bezier curve.
+
+    Args:
+        control_points: (4k, 3) float, k curves in rows of four.
+        samples: points per curve.
+    Returns:
+        (k, samples, 3) float.
+    """
+    cp = control_points.reshape(-1, POINTS_PER_CURVE, 3)
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    basis = np.hstack([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3])  # (samples, 4)
+    return np.einsum("sk,ckd->csd", basis, cp)
+
+
+def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "",
+                    topology: Topology | None = None) -> Path:
+    """Write a PNG with the front, side, top and rear views and the 35 keypoints labelled.
+
+    Args:
+        control_points: (280, 3) float, mm, car frame (left half).
+        path: PNG file to write.
+        title: heading of the drawing (the car's name).
+    Returns:
+        the written path.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    topo = topology or load_topology()
+    curves = sample_curves(control_points)
+    mirror = curves * np.array([-1.0, 1.0, 1.0])
+    kp = control_points[topo.keypoint_point_indices]
+    fig = plt.figure(figsize=(16, 9.5))
+    grid = fig.add_gridspec(2, 3, width_ratios=[2.2, 1.0, 0.9])
+    axes = [fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1]),
+            fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])]
+    for ax, (name, (hi, hs), (vi, vs), both) in zip(axes, VIEWS):
+        for group, colour in ((curves, "#1f4e9c"), (mirror, "#9fb3d6")) if both else ((curves, "#1f4e9c"),):
+            for c in group:
+                ax.plot(hs * c[:, hi], vs * c[:, vi], color=colour, lw=1.2)
+        for k, p in zip(topo.keypoints, kp):
+            facing = (name.startswith("front") and p[1] < 0.5 * control_points[:, 1].max() / 2) or \
+                     (name.startswith("rear") and p[1] > 0.5 * control_points[:, 1].max()) or \
+                     name.startswith(("side", "top"))
+            if not facing:
+                continue
+            ax.plot(hs * p[hi], vs * p[vi], "o", color="#d62728", ms=3.5)
+            ax.annotate(str(k.id), (hs * p[hi], vs * p[vi]), fontsize=7, color="#d62728",
+                        xytext=(2, 2), textcoords="offset points")
+        ax.set_title(name)
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.25)
+        ax.tick_params(labelsize=7)
+    legend = fig.add_subplot(grid[:, 2])
+    legend.axis("off")
+    legend.text(0, 1, "\n".join(f"{k.id:2d}  {k.name}" for k in topo.keypoints),
+                va="top", family="monospace", fontsize=8.5)
+    fig.suptitle(f"{title}  (mm; front wheel centre at y = 0, wheel centres at z = 0)")
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out, dpi=90)
+    plt.close(fig)
+    return out

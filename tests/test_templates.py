@@ -1,0 +1,160 @@
+"""The 14 templates: real cars of different classes, sized to their published figures, as STEP."""
+from __future__ import annotations
+
+import json
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from carbody.errors import TemplateError
+from carbody.occ.step_curves import read_curves_step, write_curves_step
+from carbody.templates import load_manifest, load_templates, measure_template
+from carbody.wireframe import Wireframe, read_wireframe, write_wireframe
+from tests.conftest import run_cli
+
+
+def test_fourteen_cars_of_the_required_classes(templates):
+    assert len(templates) == 14
+    classes = Counter(row["class"] for row, _ in templates)
+    assert classes["sedan"] >= 3 and classes["hatchback"] >= 2 and classes["suv"] >= 2
+    assert classes["wagon"] >= 1 and classes["pickup"] >= 1 and classes["mpv"] >= 1
+    assert classes["coupe"] + classes["sports"] + classes["roadster"] >= 1
+    assert len({row["name"] for row, _ in templates}) == 14
+
+
+def test_step_files_carry_the_car_and_one_named_cubic_per_curve(templates, topology):
+    from carbody.templates import templates_dir
+
+    row, wf = templates[0]
+    product, curves = read_curves_step(templates_dir() / row["file"])
+    assert product == row["name"] == wf.name
+    assert [c.name for c in curves] == [c.name for c in topology.curves]
+    assert all(c.degree == 3 and c.spans == 1 and len(c.poles) == 4 and not c.rational for c in curves)
+    text = (templates_dir() / row["file"]).read_text()
+    assert "SI_UNIT(.MILLI.,.METRE.)" in text and "AUTOMOTIVE_DESIGN" in text
+
+
+def test_round_trip_step_points_step_agrees_to_1e9_mm(templates, tmp_path):
+    for row, wf in templates:
+        path = write_wireframe(tmp_path / row["file"], wf)
+        back = read_wireframe(path)
+        assert back.name == wf.name
+        assert np.abs(back.control_points - wf.control_points).max() <= 1e-9, row["name"]
+
+
+@pytest.mark.parametrize("i", range(14))
+def test_measured_dimensions_match_the_manifest_within_1_percent(templates, i):
+    row, wf = templates[i]
+    measured = measure_template(row, wf)
+    for key in ("length_mm", "width_mm", "height_mm", "wheelbase_mm"):
+        assert measured[key] == pytest.approx(row[key], rel=0.01), (row["name"], key)
+
+
+def test_bodies_have_the_shape_of_their_class(templates):
+    """A pickup's roof ends over its wheelbase, a hatchback's far behind the rear axle; an SUV
+    stands taller than a sedan; every body is symmetric and above the ground."""
+    topo_names = {row["class"]: wf for row, wf in templates}
+    kp = {cls: wf.keypoints() for cls, wf in topo_names.items()}
+    by_class = {row["class"]: row for row, _ in templates}
+    assert kp["pickup"]["roof_rear_centre"][1] < by_class["pickup"]["wheelbase_mm"]
+    assert kp["hatchback"]["roof_rear_centre"][1] > by_class["hatchback"]["wheelbase_mm"] * 1.1
+    assert by_class["suv"]["height_mm"] > by_class["sedan"]["height_mm"] + 150
+    for row, wf in templates:
+        pts = wf.control_points
+        assert pts[:, 0].min() >= 0  # the left half
+        assert pts[:, 2].min() > -row["tyre_radius_mm"]  # above the ground
+
+
+def test_show_json_and_png(tmp_path):
+    proc = run_cli("templates", "show", "Volkswagen Golf Mk7", "--json", "--png", str(tmp_path / "golf.png"),
+                   check=True)
+    data = json.loads(proc.stdout)
+    assert data["name"] == "Volkswagen Golf Mk7"
+    assert np.array(data["control_points"]).shape == (280, 3)
+    assert len(data["keypoints"]) == 35 and len(data["keypoints"]["front_arch_top"]) == 3
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(tmp_path / "golf.png")
+    assert img.shape[0] > 500 and img.shape[1] > 1000
+    ink = (img[..., :3].mean(axis=2) < 0.6).mean()
+    assert 0.01 < ink < 0.5  # something is drawn, and not a black square
+
+
+def test_list_json_contract():
+    rows = json.loads(run_cli("templates", "list", "--json", check=True).stdout)
+    assert len(rows) == 14
+    assert set(rows[0]) == {"name", "class", "length_mm", "width_mm", "height_mm", "wheelbase_mm", "file"}
+
+
+def test_manifest_gives_sources_and_overhangs():
+    for row in load_manifest():
+        assert row["source"]
+        assert row["front_overhang_mm"] + row["wheelbase_mm"] + row["rear_overhang_mm"] == pytest.approx(row["length_mm"])
+
+
+def test_a_reversed_or_degree_raised_curve_is_read_as_the_same_cubic(templates, tmp_path):
+    row, wf = templates[3]
+    curves = wf.named_curves()
+    name, poles = curves[10]
+    # Degree elevation of a cubic to a quartic describes the same curve with 5 poles.
+    q = np.vstack([poles[0], [(i * poles[i - 1] + (4 - i) * poles[i]) / 4 for i in range(1, 4)], poles[3]])
+    curves[10] = (name, q)
+    curves[11] = (curves[11][0], curves[11][1][::-1])
+    path = write_curves_step(tmp_path / "edited.step", curves, wf.name)
+    back = read_wireframe(path)
+    assert np.abs(back.control_points - wf.control_points).max() < 1e-6
+
+
+def _broken(wf, tmp_path, change):
+    curves = wf.named_curves()
+    change(curves)
+    return write_curves_step(tmp_path / "broken.step", curves, wf.name)
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda c: c.pop(5), ["windshield_centre_2", "missing"]),
+    (lambda c: c.append(("spoiler", c[0][1] + 5.0)), ["spoiler", "unknown"]),
+    (lambda c: c.__setitem__(7, ("hood_edge_front", c[7][1])), ["hood_edge_front", "unknown"]),
+    (lambda c: c.__setitem__(8, (c[8][0], np.vstack([c[8][1][:2], [[0, 1500, 900]] * 2, c[8][1][2:]]))),
+     ["roof_centre_3", "not a cubic"]),
+    (lambda c: c.append((c[3][0], c[3][1])), ["hood_centre_3", "twice"]),
+    (lambda c: c.__setitem__(0, (c[0][0], c[0][1] + [0, 0, 40.0])), ["front_centre", "do not meet"]),
+])
+def test_a_mis_structured_template_is_refused_naming_file_and_curve(templates, tmp_path, change, words):
+    _, wf = templates[0]
+    path = _broken(wf, tmp_path, change)
+    with pytest.raises(TemplateError) as err:
+        read_wireframe(path)
+    message = str(err.value)
+    assert str(path) in message and "\n" not in message
+    for word in words:
+        assert word in message
+
+
+def test_a_corrupt_file_is_refused(tmp_path):
+    bad = tmp_path / "corrupt.step"
+    bad.write_text("ISO-10303-21;\nHEADER;\nthis is not step\n")
+    with pytest.raises(TemplateError, match="corrupt.step: not a readable STEP file"):
+        read_wireframe(bad)
+    bad.write_bytes(b"\x00\xff" * 500)
+    with pytest.raises(TemplateError, match="not a readable STEP file"):
+        read_wireframe(bad)
+
+
+def test_one_bad_template_refuses_the_whole_set_and_the_cli_says_it_in_one_line(template_copy, templates):
+    row, wf = templates[2]
+    curves = wf.named_curves()[:-1]
+    write_curves_step(template_copy / row["file"], curves, wf.name)
+    with pytest.raises(TemplateError, match="rear_fender_bottom"):
+        load_templates(template_copy)
+    proc = run_cli("library", "--dir", str(template_copy))
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and row["file"] in lines[0] and "rear_fender_bottom" in lines[0]
+
+
+def test_a_wireframe_needs_280_points():
+    with pytest.raises(TemplateError, match="280 x 3"):
+        Wireframe("x", np.zeros((10, 3)))
