@@ -18,6 +18,7 @@ COMMAND_MODULES = (
     "carbody.templates.cli",
     "carbody.library_cli",
     "carbody.demo",
+    "carbody.parts_cli",
 )
 
 

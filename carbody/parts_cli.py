@@ -1,0 +1,64 @@
+"""``carbody parts FILE.step``: the named curves and faces of a carbody STEP file, with centres.
+
+Other programs (the FreeCAD workbench) read a carbody STEP file with their own reader and use
+this listing to name what they read, matching by position rather than by order.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("parts", help="list the named curves and faces of a carbody STEP file")
+    p.add_argument("step", type=Path, help="a wireframe or body STEP file written by carbody")
+    p.add_argument("--json", action="store_true", help="print JSON (default: a table)")
+    p.set_defaults(func=_parts)
+
+
+def curve_centre(poles: np.ndarray, samples: int = 64) -> list[float]:
+    """Arc-length centroid of a polynomial Bezier curve with (n, 3) poles, mm."""
+    from math import comb
+
+    n = len(poles) - 1
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    basis = np.hstack([comb(n, i) * t**i * (1 - t) ** (n - i) for i in range(n + 1)])
+    pts = basis @ poles
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    mids = (pts[1:] + pts[:-1]) / 2
+    return (seg @ mids / seg.sum()).tolist() if seg.sum() > 0 else pts[0].tolist()
+
+
+def list_parts(path: Path) -> dict:
+    """{product, curves: [{name, centre}], faces: [{name, region, centre, area}]} of a STEP file."""
+    from carbody.occ.step_curves import read_curves_step
+
+    faces: list[dict] = []
+    try:
+        from carbody.occ.step_body import list_body_faces  # the surfaces stage's reader
+    except ImportError:
+        list_body_faces = None
+    if list_body_faces is not None:
+        faces = list_body_faces(path)
+    product, curves = read_curves_step(path)
+    return {
+        "product": product,
+        "curves": [{"name": c.name, "centre": curve_centre(c.poles)} for c in curves if len(c.poles)],
+        "faces": faces,
+    }
+
+
+def _parts(args) -> int:
+    listing = list_parts(args.step)
+    if args.json:
+        print(json.dumps(listing))
+    else:
+        print(f"{listing['product']}: {len(listing['curves'])} curves, {len(listing['faces'])} faces")
+        for c in listing["curves"]:
+            print(f"  curve {c['name']}")
+        for f in listing["faces"]:
+            print(f"  face  {f['name']} ({f['region']})")
+    return 0

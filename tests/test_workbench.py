@@ -1,0 +1,95 @@
+"""The FreeCAD workbench and macro, run headless in FreeCAD 0.20's freecadcmd (a real FreeCAD)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO
+
+WORKBENCH = REPO / "workbench"
+pytestmark = pytest.mark.freecad
+
+
+def run_freecad(script: str, tmp_path: Path, env: dict | None = None) -> dict:
+    """Run a Python script in freecadcmd; the script prints one line ``RESULT <json>``."""
+    path = tmp_path / "fc_script.py"
+    path.write_text(f"import sys\nsys.path.insert(0, {str(WORKBENCH)!r})\n" + script)
+    proc = subprocess.run(["freecadcmd", str(path)], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "CARBODY_COMMAND": f"{sys.executable} -m carbody", **(env or {})})
+    for line in proc.stdout.splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[len("RESULT "):])
+    raise AssertionError(f"freecadcmd gave no result:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+
+
+def test_addon_layout_for_the_addon_manager():
+    root = ET.parse(WORKBENCH / "package.xml").getroot()
+    ns = {"p": "https://wiki.freecad.org/Package_Metadata"}
+    assert root.find("p:name", ns).text == "carbody"
+    assert root.find("p:content/p:workbench/p:classname", ns).text == "CarbodyWorkbench"
+    assert (WORKBENCH / root.find("p:icon", ns).text).is_file()
+    assert (WORKBENCH / root.find("p:content/p:macro/p:file", ns).text).is_file()
+    text = (WORKBENCH / "carbody_wb" / "commands.py").read_text()
+    for icon in ("load_photo.svg", "load_keypoints.svg", "reconstruct.svg"):
+        assert icon in text and (WORKBENCH / "Resources" / "icons" / icon).is_file()
+    assert "class CarbodyWorkbench" in (WORKBENCH / "InitGui.py").read_text()
+
+
+def test_a_wireframe_comes_into_freecad_as_parts_named_by_curve(tmp_path, topology):
+    from carbody.templates import templates_dir
+
+    step = templates_dir() / "volvo_v60.step"
+    result = run_freecad(f"""
+import json, FreeCAD
+from carbody_wb import core
+doc = FreeCAD.newDocument("t")
+group = core.import_step_parts(doc, {str(step)!r}, "Wireframe")
+objs = group.Group
+print("RESULT " + json.dumps({{
+    "labels": [o.Label for o in objs],
+    "valid": all(o.Shape.isValid() for o in objs),
+    "edges": sum(len(o.Shape.Edges) for o in objs),
+    "first": [round(v, 3) for v in objs[0].Shape.Edges[0].Vertexes[0].Point],
+}}))
+""", tmp_path)
+    assert result["labels"] == [c.name for c in topology.curves]
+    assert result["valid"] and result["edges"] == 70
+    from carbody.wireframe import read_wireframe
+
+    first = read_wireframe(step).control_points[[0, 3]]
+    assert any(abs(p - result["first"]).max() < 1e-3 for p in first)
+
+
+def test_the_photo_becomes_an_image_plane_with_its_aspect(tmp_path):
+    import cv2
+    import numpy as np
+
+    for name in ("car.png", "car.jpg"):
+        cv2.imwrite(str(tmp_path / name), np.full((300, 800, 3), 200, np.uint8))
+    result = run_freecad(f"""
+import json, FreeCAD
+from carbody_wb import core
+doc = FreeCAD.newDocument("t")
+planes = [core.add_photo(doc, {str(tmp_path)!r} + "/" + n, 4000.0) for n in ("car.png", "car.jpg")]
+print("RESULT " + json.dumps([[float(p.XSize), float(p.YSize)] for p in planes]))
+""", tmp_path)
+    assert result == [[4000.0, 1500.0], [4000.0, 1500.0]]
+
+
+def test_a_missing_carbody_command_is_one_clear_line(tmp_path):
+    result = run_freecad("""
+import json, FreeCAD
+from carbody_wb import core
+try:
+    core.run_carbody(["library"], ["/nonexistent/carbody"])
+    print("RESULT " + json.dumps("no error"))
+except core.CarbodyWorkbenchError as exc:
+    print("RESULT " + json.dumps(str(exc)))
+""", tmp_path)
+    assert "carbody command not found" in result and "\n" not in result

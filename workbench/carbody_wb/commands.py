@@ -1,0 +1,102 @@
+"""The workbench's toolbar commands: load photo, load keypoints, reconstruct, preferences."""
+import os
+
+import FreeCAD
+import FreeCADGui
+
+from carbody_wb import ICONS
+from carbody_wb import core
+
+
+def _ask_file(title, filters):
+    from PySide import QtGui
+
+    path, _ = QtGui.QFileDialog.getOpenFileName(None, title, "", filters)
+    return path or None
+
+
+def _doc():
+    return FreeCAD.ActiveDocument or FreeCAD.newDocument("carbody")
+
+
+class _Command:
+    icon = "carbody.svg"
+    menu = ""
+    tooltip = ""
+
+    def GetResources(self):
+        return {"Pixmap": os.path.join(ICONS, self.icon), "MenuText": self.menu, "ToolTip": self.tooltip}
+
+    def IsActive(self):
+        return True
+
+    def Activated(self):
+        try:
+            self.run()
+        except core.CarbodyWorkbenchError as exc:
+            FreeCAD.Console.PrintError(f"carbody: {exc}\n")
+
+
+class LoadPhoto(_Command):
+    icon = "load_photo.svg"
+    menu = "Load car photo"
+    tooltip = "Show a car photo as an image plane in the car's side plane"
+
+    def run(self):
+        path = _ask_file("Car photo", "Images (*.png *.jpg *.jpeg)")
+        if path:
+            core.add_photo(_doc(), path)
+            FreeCAD.ParamGet(core.PARAM_PATH).SetString("LastImage", path)
+
+
+class LoadKeypoints(_Command):
+    icon = "load_keypoints.svg"
+    menu = "Load keypoints"
+    tooltip = "Choose the keypoints file of the photo (carbody JSON, COCO or labelme)"
+
+    def run(self):
+        path = _ask_file("Keypoints", "Keypoints (*.json)")
+        if path:
+            FreeCAD.ParamGet(core.PARAM_PATH).SetString("LastKeypoints", path)
+            FreeCAD.Console.PrintMessage(f"carbody: keypoints {path}\n")
+
+
+class Reconstruct(_Command):
+    icon = "reconstruct.svg"
+    menu = "Reconstruct car body"
+    tooltip = "Run carbody on the photo and keypoints; bring the wireframe and body in as Part objects"
+
+    def run(self):
+        from PySide import QtGui
+
+        params = FreeCAD.ParamGet(core.PARAM_PATH)
+        image, keypoints = params.GetString("LastImage", ""), params.GetString("LastKeypoints", "")
+        if not image or not keypoints:
+            raise core.CarbodyWorkbenchError("load a photo and its keypoints first")
+        out = QtGui.QFileDialog.getExistingDirectory(None, "Output folder")
+        if out:
+            _, _, report = core.reconstruct(_doc(), image, keypoints, out)
+            FreeCAD.Console.PrintMessage(f"carbody: view {report.get('view', {})}\n")
+            FreeCADGui.SendMsgToActiveView("ViewFit")
+
+
+class Preferences(_Command):
+    icon = "carbody.svg"
+    menu = "carbody command..."
+    tooltip = "Set the path of the carbody command this workbench runs"
+
+    def run(self):
+        from PySide import QtGui
+
+        text, ok = QtGui.QInputDialog.getText(None, "carbody", "carbody command:", text=" ".join(core.carbody_command()))
+        if ok and text:
+            core.set_carbody_command(text)
+
+
+def register():
+    """Add the commands to FreeCAD; returns their names in toolbar order."""
+    commands = {"Carbody_LoadPhoto": LoadPhoto(), "Carbody_LoadKeypoints": LoadKeypoints(),
+                "Carbody_Reconstruct": Reconstruct(), "Carbody_Preferences": Preferences()}
+    for name, command in commands.items():
+        FreeCADGui.addCommand(name, command)
+    return list(commands)
