@@ -18,3 +18,11 @@ class TemplateError(CarbodyError):
 
 class LibraryError(CarbodyError):
     """The model library cannot be built from the templates."""
+
+
+class RenderError(CarbodyError):
+    """A shape cannot be rendered (no faces, bad view, bad size or colour)."""
+
+
+class ViewError(CarbodyError):
+    """The view-angle classifier cannot read an image, a data set or its weights."""
