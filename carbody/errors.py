@@ -26,3 +26,19 @@ class RenderError(CarbodyError):
 
 class ViewError(CarbodyError):
     """The view-angle classifier cannot read an image, a data set or its weights."""
+
+
+class FitError(CarbodyError):
+    """Single-view fitting cannot run on the given input (view, keypoints, library)."""
+
+
+class AngleError(FitError):
+    """A view angle given to the fit is not a number or lies outside its range."""
+
+
+class KeypointError(FitError):
+    """Keypoint annotations are unreadable, unknown, too few, degenerate, NaN or off the image."""
+
+
+class ImageError(CarbodyError):
+    """An image file cannot be read."""
