@@ -448,8 +448,12 @@ def build_junctions_and_curves(d: DesignTable) -> dict[str, np.ndarray]:
         last = smooth_chain([p_rear, end_r], start_tangent=down, end_tangent=down)[0]
         return [first, *quarter, last]
 
-    front_arch = arch(0.0, x_arch_f, fbc[2], z_sill_bottom, x_arch_f - 10, x_sill_bottom)
-    rear_arch = arch(wb, x_arch_r, z_sill_bottom, rbc[2], x_sill_bottom, x_arch_r - 10)
+    # The arch runs down to the bumper line, but always well below the wheel centre (a tall
+    # SUV bumper would otherwise leave no arch below the centre line).
+    front_end_z = min(fbc[2], -0.35 * arch_r)
+    rear_end_z = min(rbc[2], -0.35 * arch_r)
+    front_arch = arch(0.0, x_arch_f, front_end_z, z_sill_bottom, x_arch_f - 10, x_sill_bottom)
+    rear_arch = arch(wb, x_arch_r, z_sill_bottom, rear_end_z, x_sill_bottom, x_arch_r - 10)
     put("front_arch", front_arch)
     put("rear_arch", rear_arch)
     sill_f, sill_r = front_arch[-1][-1], rear_arch[0][0]
