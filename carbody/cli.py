@@ -19,6 +19,7 @@ COMMAND_MODULES = (
     "carbody.library_cli",
     "carbody.demo",
     "carbody.parts_cli",
+    "carbody.view.cli",
 )
 
 

@@ -1,0 +1,417 @@
+"""The rendered multi-view data set (paper III.A, our USMV3085): library bodies, many looks.
+
+Bodies are library models — each template as it is plus sampled expansions — surfaced by our own
+pipeline (:func:`carbody.surface.build_body`), with simple wheels (tyre + rim discs) added at
+the wheel centres so a render looks like a car rather than a shell. Each body is tessellated once
+and rendered many times (:class:`carbody.render.Scene`), each image with its own random look:
+
+- view: one of the 24 classes (:mod:`carbody.view.labels`); left-side classes (0°–180°) are
+  rendered, right-side classes are the mirror image (rendered at 360° − θ and flipped), as the
+  paper's 13 classes plus their mirror; θ jitters by ±``angle_jitter_deg`` inside its class;
+- elevation φ uniform in 0°–30°, a small roll, orthographic or perspective camera at 1.3–5
+  car lengths, the car filling 60–100 % of the frame and shifted off centre (crop);
+- paint from a palette of real car colours with jitter, glass tint, key light direction and
+  strength, ambient, specular;
+- background: plain colour, gradient, a street-like scene of sky, ground and blocks, blurred
+  colour noise or stripes; then mild blur and sensor noise.
+
+Written to ``OUT_DIR/images/<θ>/<body>_<n>.png`` (128 × 128 RGB) with ``OUT_DIR/manifest.csv``
+(one row per image: file, class, θ, φ, body, template, split, ...) and ``OUT_DIR/dataset.json``.
+The split is by car: the templates are split 8:2 and every body of a validation template
+(its expansions too) is in validation, so no car seen in training is validated on.
+Everything follows from ``seed``: the same seed gives the same files.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from carbody.errors import ViewError
+from carbody.view.labels import CLASS_ANGLES_DEG, N_CLASSES
+
+#: Side of the stored images, pixels (the network resizes to 64).
+IMAGE_SIZE = 128
+
+#: Default number of images (paper: 3085; a multiple of 24 classes above it).
+DEFAULT_COUNT = 3096
+
+#: Fraction of templates whose bodies go to validation (paper's 8:2).
+VALIDATION_FRACTION = 0.2
+
+#: Real car colours (RGB 0-1): white, black, silvers, greys, reds, blues, green, yellow, orange, brown, beige.
+PAINT_PALETTE = np.array([
+    (0.93, 0.93, 0.92), (0.05, 0.05, 0.06), (0.72, 0.73, 0.75), (0.55, 0.56, 0.58), (0.32, 0.33, 0.35),
+    (0.70, 0.05, 0.06), (0.45, 0.03, 0.05), (0.08, 0.20, 0.55), (0.05, 0.09, 0.25), (0.30, 0.55, 0.80),
+    (0.10, 0.30, 0.15), (0.90, 0.75, 0.10), (0.90, 0.40, 0.05), (0.35, 0.22, 0.12), (0.80, 0.74, 0.60),
+])
+
+
+@dataclass(frozen=True)
+class Variation:
+    """What varies from image to image (the ablation switches these off one at a time).
+
+    Attributes:
+        background: textured backgrounds (else plain white).
+        colour: random paint, glass and light (else silver paint, dark glass, one light).
+        elevation: elevation 0°–30°, roll, perspective, fill and offset jitter (else φ = 10°,
+            orthographic, centred at 85 % fill).
+        angle_jitter_deg: θ jitter inside its class, degrees.
+    """
+
+    background: bool = True
+    colour: bool = True
+    elevation: bool = True
+    angle_jitter_deg: float = 3.0
+
+
+# ----------------------------------------------------------------------------------------- bodies
+
+@dataclass
+class BodySpec:
+    """A body to render: library model ``model_index`` at its template's real size."""
+
+    body_id: str
+    template: str
+    model_index: int
+    factors: tuple[float, float, float, float]
+    control_points_mm: np.ndarray
+    tyre_radius_mm: float
+
+
+def choose_bodies(library, templates_manifest: list[dict], per_template: int, seed: int) -> list[BodySpec]:
+    """Each template as it is plus ``per_template − 1`` random expansions of it (seeded)."""
+    rng = np.random.default_rng([seed, 1])
+    tyre = {row["name"]: float(row.get("tyre_radius_mm") or 0.0) for row in templates_manifest}
+    out = []
+    for t, name in enumerate(library.template_names):
+        models = np.flatnonzero(library.template_index == t)
+        original = [j for j in models if np.allclose(library.factors[j], 1.0)]
+        others = [j for j in models if j not in original]
+        picks = original[:1] + list(rng.choice(others, size=min(len(others), per_template - 1), replace=False))
+        wb = float(library.template_wheelbase_mm[t])
+        for n, j in enumerate(picks):
+            radius = tyre.get(name) or 0.115 * wb
+            out.append(BodySpec(
+                body_id=f"{_slug(name)}-{n:02d}", template=name, model_index=int(j),
+                factors=tuple(float(f) for f in library.factors[j]),
+                control_points_mm=library.points(int(j)) * wb / 1000.0, tyre_radius_mm=radius))
+    return out
+
+
+def _slug(name: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in name.lower()).strip("_")
+
+
+def wheel_meshes(control_points_mm: np.ndarray, tyre_radius_mm: float, segments: int = 40):
+    """Four simple wheels (tyre tread + sidewall ``"tyre"``, a ``"rim"`` disc) at the wheel centres.
+
+    Returns:
+        list of :class:`carbody.render.FaceMesh`, mm, both sides of the car.
+    """
+    from carbody.render.mesh import FaceMesh, mirrored
+    from carbody.topology import load_topology
+    from carbody.wireframe import wheel_centre
+
+    topo = load_topology()
+    cp = np.asarray(control_points_mm, dtype=float)
+    front = wheel_centre(cp, topo, "front")
+    rear = wheel_centre(cp, topo, "rear")
+    wheelbase = float(np.hypot(*(rear - front)))
+    arch_x = []
+    for region in ("front_wheel_arch", "rear_wheel_arch"):
+        idx = [4 * c + i for c, _ in topo.region(region).loop for i in range(4)]
+        arch_x.append(cp[idx, 0].min())
+    x_out = float(min(arch_x)) + 0.035 * wheelbase
+    width = 0.075 * wheelbase
+    R, r_rim = tyre_radius_mm, 0.64 * tyre_radius_mm
+    a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    ring = np.stack([np.cos(a), np.sin(a)], axis=1)            # (s, 2) in (y, z)
+    i = np.arange(segments)
+    j = (i + 1) % segments
+    meshes = []
+    for (yc, zc) in (front, rear):
+        def at(x, rad):
+            return np.c_[np.full(segments, x), yc + rad * ring[:, 0], zc + rad * ring[:, 1]]
+        # tread: outer ring at x_out - width .. x_out; sidewall: annulus r_rim..R at x_out
+        tread_v = np.vstack([at(x_out - width, R), at(x_out, R)])
+        tread_t = np.r_[np.c_[i, j, i + segments], np.c_[j, j + segments, i + segments]]
+        side_v = np.vstack([at(x_out, r_rim), at(x_out, R)])
+        side_t = np.r_[np.c_[i, i + segments, j], np.c_[j, i + segments, j + segments]]
+        rim_v = np.vstack([at(x_out + 1.0, r_rim), [[x_out + 1.0 - 0.02 * R, yc, zc]]])
+        rim_t = np.c_[np.full(segments, segments), j, i]
+        meshes += [FaceMesh("tyre", tread_v, tread_t), FaceMesh("tyre", side_v, side_t),
+                   FaceMesh("rim", rim_v, rim_t)]
+    return meshes + mirrored(meshes)
+
+
+def body_meshes(spec: BodySpec, surface_body: Callable | None = None):
+    """Tessellated body (both halves, region names) plus wheels, mm."""
+    from carbody.render import tessellate
+    from carbody.wireframe import Wireframe
+
+    if surface_body is None:
+        try:
+            from carbody.surface import build_body as surface_body
+        except ImportError:
+            raise ViewError("the data set needs surfaced bodies, and carbody.surface is not "
+                            "available in this installation") from None
+    body = surface_body(Wireframe(spec.body_id, spec.control_points_mm))
+    return tessellate(body) + wheel_meshes(spec.control_points_mm, spec.tyre_radius_mm)
+
+
+# ----------------------------------------------------------------------------------------- looks
+
+def random_background(rng: np.random.Generator, size: int = IMAGE_SIZE) -> tuple[np.ndarray, str]:
+    """A (size, size, 3) uint8 background and its kind."""
+    import cv2
+
+    kind = str(rng.choice(["plain", "gradient", "street", "noise", "stripes"], p=[0.2, 0.15, 0.35, 0.15, 0.15]))
+    h = w = size
+    c1, c2 = rng.uniform(0, 1, 3), rng.uniform(0, 1, 3)
+    if kind == "plain":
+        grey = rng.uniform(0.4, 1.0)
+        img = np.ones((h, w, 3)) * (grey * 0.7 + 0.3 * c1 if rng.random() < 0.5 else np.full(3, grey))
+    elif kind == "gradient":
+        t = np.linspace(0, 1, h)[:, None, None]
+        img = np.broadcast_to(c1 * (1 - t) + c2 * t, (h, w, 3)).copy()
+    elif kind == "street":
+        horizon = int(h * rng.uniform(0.35, 0.75))
+        sky = np.array([0.55, 0.7, 0.9]) * rng.uniform(0.6, 1.1) + rng.normal(0, 0.05, 3)
+        ground = np.array([0.4, 0.4, 0.4]) * rng.uniform(0.5, 1.4) + rng.normal(0, 0.06, 3)
+        img = np.empty((h, w, 3))
+        img[:horizon] = sky
+        img[horizon:] = ground
+        for _ in range(rng.integers(0, 7)):   # buildings, trees, other cars: blocks on the horizon
+            x0 = rng.integers(0, w)
+            bw, bh = rng.integers(w // 12, w // 3), rng.integers(h // 10, int(h * 0.6))
+            img[max(0, horizon - bh):horizon, x0:x0 + bw] = rng.uniform(0.1, 0.9, 3)
+        if rng.random() < 0.5:                 # kerb or road marking
+            y = rng.integers(horizon, h)
+            img[y:y + rng.integers(1, 4)] = rng.uniform(0.6, 1.0)
+    elif kind == "noise":
+        small = rng.uniform(0, 1, (rng.integers(3, 12), rng.integers(3, 12), 3))
+        img = cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
+    else:
+        period = rng.uniform(6, 40)
+        ang = rng.uniform(0, np.pi)
+        yy, xx = np.mgrid[0:h, 0:w]
+        s = (np.sin((xx * np.cos(ang) + yy * np.sin(ang)) * 2 * np.pi / period) > 0)[..., None]
+        img = np.where(s, c1, c2)
+    img = img + rng.normal(0, rng.uniform(0, 0.04), img.shape)
+    return (np.clip(img, 0, 1) * 255).astype(np.uint8), kind
+
+
+@dataclass
+class Shot:
+    """Everything about one image but the body (all angles in degrees)."""
+
+    class_index: int
+    theta_deg: float          # the true view of the (possibly mirrored) picture
+    render_theta_deg: float   # the left-side view rendered before any flip
+    mirrored: bool
+    elevation_deg: float
+    roll_deg: float
+    distance_lengths: float   # perspective camera distance in car lengths; 0 = orthographic
+    fill: float
+    offset: tuple[float, float]
+    background: str
+    paint: tuple[float, float, float]
+
+
+def sample_shot(rng: np.random.Generator, class_index: int, vary: Variation):
+    """A random :class:`Shot` of class ``class_index`` and its :class:`carbody.render.Look`."""
+    from carbody.render import Look
+
+    theta = (CLASS_ANGLES_DEG[class_index] + rng.uniform(-1, 1) * vary.angle_jitter_deg) % 360.0
+    mirrored = theta > 180.0 or (theta in (0.0, 180.0) and rng.random() < 0.5) or \
+        (class_index == 0 and theta > 180.0)
+    render_theta = 360.0 - theta if mirrored else theta
+    if vary.elevation:
+        elevation = rng.uniform(0.0, 30.0)
+        roll = rng.normal(0.0, 2.5)
+        distance = 0.0 if rng.random() < 0.25 else rng.uniform(1.3, 5.0)
+        fill = rng.uniform(0.6, 0.95) if rng.random() < 0.85 else rng.uniform(0.95, 1.15)
+        offset = tuple(rng.uniform(-0.08, 0.08, 2))
+    else:
+        elevation, roll, distance, fill, offset = 10.0, 0.0, 0.0, 0.85, (0.0, 0.0)
+    if vary.colour:
+        paint = np.clip(PAINT_PALETTE[rng.integers(len(PAINT_PALETTE))] + rng.normal(0, 0.05, 3), 0, 1)
+        glass = np.clip(np.array([0.06, 0.08, 0.1]) * rng.uniform(0.5, 2.5) + rng.normal(0, 0.02, 3), 0, 1)
+        light = dict(light_azimuth_deg=rng.uniform(-80, 80), light_elevation_deg=rng.uniform(-10, 70),
+                     light_intensity=rng.uniform(0.5, 1.1), ambient=rng.uniform(0.1, 0.45),
+                     specular=rng.uniform(0.1, 0.7))
+        colours = {"tyre": tuple(np.full(3, rng.uniform(0.03, 0.12))),
+                   "rim": tuple(np.full(3, rng.uniform(0.3, 0.85)))}
+    else:
+        paint, glass = np.array([0.72, 0.73, 0.75]), np.array([0.07, 0.09, 0.11])
+        light = {}
+        colours = {"tyre": (0.06, 0.06, 0.06), "rim": (0.6, 0.6, 0.6)}
+    if vary.background:
+        background, kind = random_background(rng)
+    else:
+        background, kind = (1.0, 1.0, 1.0), "white"
+    look = Look(paint=tuple(paint), glass=tuple(glass), colours=colours, background=background, **light)
+    shot = Shot(class_index, float(theta), float(render_theta), bool(mirrored), float(elevation), float(roll),
+                float(distance), float(fill), (float(offset[0]), float(offset[1])), kind,
+                tuple(float(v) for v in paint))
+    return shot, look
+
+
+def shoot(scene, shot: Shot, look, car_length: float, rng: np.random.Generator, vary: Variation) -> np.ndarray:
+    """Render one :class:`Shot` of a scene: (IMAGE_SIZE, IMAGE_SIZE, 3) uint8."""
+    import cv2
+
+    img = scene.render(shot.render_theta_deg, shot.elevation_deg, shot.roll_deg, look=look,
+                       distance=shot.distance_lengths * car_length or None, fill=shot.fill,
+                       offset=shot.offset)
+    if shot.mirrored:
+        img = img[:, ::-1].copy()
+    if vary.colour or vary.background:   # camera blur and sensor noise
+        if rng.random() < 0.4:
+            img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.3, 1.2))
+        sigma = rng.uniform(0, 6)
+        img = np.clip(img + rng.normal(0, sigma, img.shape), 0, 255).astype(np.uint8)
+    return img
+
+
+# ----------------------------------------------------------------------------------------- writer
+
+MANIFEST_FIELDS = ["file", "class_index", "class_deg", "theta_deg", "elevation_deg", "roll_deg", "mirrored",
+                   "distance_lengths", "fill", "background", "body", "template", "model_index", "split"]
+
+
+def split_templates(names: list[str], seed: int, fraction: float = VALIDATION_FRACTION) -> set[str]:
+    """The templates whose bodies are validation (seeded, at least one)."""
+    rng = np.random.default_rng([seed, 2])
+    n = max(1, int(round(fraction * len(names))))
+    return {names[i] for i in rng.choice(len(names), size=n, replace=False)}
+
+
+def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 0,
+                   bodies_per_template: int = 4, vary: Variation = Variation(),
+                   templates: list[str] | None = None, progress: bool = True,
+                   surface_body: Callable | None = None) -> Path:
+    """Render the data set into ``out_dir`` (see module docstring); returns the manifest path.
+
+    Args:
+        count: number of images (spread evenly over bodies and the 24 classes).
+        seed: everything random follows from it.
+        bodies_per_template: the template itself plus this many − 1 library expansions.
+        vary: what varies between images.
+        templates: restrict to these template names (default all).
+        surface_body: ``Wireframe -> Body`` (default :func:`carbody.surface.build_body`).
+
+    Raises:
+        ViewError: bad count, unknown template, an output folder that already holds a data set.
+    """
+    from tqdm import tqdm
+
+    from carbody.library import load_library
+    from carbody.render import Scene, save_png
+    from carbody.templates import load_templates
+
+    if count < N_CLASSES:
+        raise ViewError(f"--count must be at least {N_CLASSES} (one image per class), got {count}")
+    if bodies_per_template < 1:
+        raise ViewError("bodies per template must be at least 1")
+    out = Path(out_dir)
+    if (out / "manifest.csv").exists():
+        raise ViewError(f"{out} already holds a data set (manifest.csv); choose an empty folder")
+    library = load_library()
+    rows = [row for row, _ in load_templates()]
+    bodies = choose_bodies(library, rows, bodies_per_template, seed)
+    if templates:
+        unknown = set(templates) - set(library.template_names)
+        if unknown:
+            raise ViewError(f"unknown template {sorted(unknown)[0]!r}")
+        bodies = [b for b in bodies if b.template in templates]
+    val_templates = split_templates(sorted({b.template for b in bodies}), seed)
+
+    # Spread images: body b gets count // n (+1 for the first count % n), classes cycled.
+    per_body = [count // len(bodies) + (i < count % len(bodies)) for i in range(len(bodies))]
+    (out / "images").mkdir(parents=True, exist_ok=True)
+    manifest_rows = []
+    bar = tqdm(total=count, desc="render-dataset", unit="img", disable=not progress)
+    n_done = 0
+    for b, (spec, n_img) in enumerate(zip(bodies, per_body)):
+        bar.set_postfix_str(spec.body_id)
+        scene = Scene(body_meshes(spec, surface_body), size=(IMAGE_SIZE, IMAGE_SIZE), antialias=2)
+        car_length = float(np.ptp(spec.control_points_mm[:, 1]))
+        brng = np.random.default_rng([seed, 3, b])
+        classes = (np.arange(n_img) + brng.integers(N_CLASSES)) % N_CLASSES
+        brng.shuffle(classes)
+        for i, k in enumerate(classes):
+            rng = np.random.default_rng([seed, 4, b, i])
+            shot, look = sample_shot(rng, int(k), vary)
+            img = shoot(scene, shot, look, car_length, rng, vary)
+            rel = Path("images") / f"{int(CLASS_ANGLES_DEG[k]):03d}" / f"{spec.body_id}_{i:04d}.png"
+            (out / rel).parent.mkdir(exist_ok=True)
+            save_png(img, out / rel)
+            manifest_rows.append({
+                "file": rel.as_posix(), "class_index": int(k), "class_deg": int(CLASS_ANGLES_DEG[k]),
+                "theta_deg": round(shot.theta_deg, 3), "elevation_deg": round(shot.elevation_deg, 3),
+                "roll_deg": round(shot.roll_deg, 3), "mirrored": int(shot.mirrored),
+                "distance_lengths": round(shot.distance_lengths, 3), "fill": round(shot.fill, 3),
+                "background": shot.background, "body": spec.body_id, "template": spec.template,
+                "model_index": spec.model_index,
+                "split": "val" if spec.template in val_templates else "train"})
+            n_done += 1
+            bar.update(1)
+    bar.close()
+    tmp = out / ".manifest.csv.tmp"
+    with open(tmp, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=MANIFEST_FIELDS)
+        writer.writeheader()
+        writer.writerows(manifest_rows)
+    (out / "dataset.json").write_text(json.dumps({
+        "count": n_done, "seed": seed, "image_size": IMAGE_SIZE, "classes_deg": CLASS_ANGLES_DEG.tolist(),
+        "bodies": [b.body_id for b in bodies], "validation_templates": sorted(val_templates),
+        "variation": asdict(vary), "bodies_per_template": bodies_per_template}, indent=1))
+    tmp.replace(out / "manifest.csv")
+    return out / "manifest.csv"
+
+
+def read_manifest(dataset_dir: str | Path) -> list[dict]:
+    """Rows of a data set: ``manifest.csv`` if present, else a folder of class folders named by
+    angle (``0``, ``15``, ... ``345`` or ``000``..), split 8:2 at random by image (seed 0).
+
+    Raises:
+        ViewError: no such folder, no images, a class folder that is not an angle.
+    """
+    root = Path(dataset_dir)
+    if not root.is_dir():
+        raise ViewError(f"{root}: no such data set folder")
+    if (root / "manifest.csv").exists():
+        with open(root / "manifest.csv", newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        for r in rows:
+            r["class_index"] = int(r["class_index"])
+        if not rows:
+            raise ViewError(f"{root}/manifest.csv lists no images")
+        return rows
+    from carbody.view.labels import class_of
+
+    base = root / "images" if (root / "images").is_dir() else root
+    rows = []
+    for folder in sorted(p for p in base.iterdir() if p.is_dir()):
+        try:
+            theta = float(folder.name)
+        except ValueError:
+            raise ViewError(f"{folder}: class folders must be named by angle in degrees") from None
+        if theta % 15:
+            raise ViewError(f"{folder}: {theta:g}° is not a 15° class")
+        for f in sorted(folder.iterdir()):
+            if f.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".webp"):
+                rows.append({"file": str(f.relative_to(root)), "class_index": class_of(theta), "body": f.stem})
+    if not rows:
+        raise ViewError(f"{root}: no images found (need manifest.csv or class folders of images)")
+    rng = np.random.default_rng(0)
+    val = set(rng.choice(len(rows), size=max(1, len(rows) // 5), replace=False).tolist())
+    for i, r in enumerate(rows):
+        r["split"] = "val" if i in val else "train"
+    return rows

@@ -1,0 +1,176 @@
+"""Tell the view angle of a car photo with the shipped (or a given) MobileNetV2.
+
+    from carbody.view import predict_view
+    p = predict_view("photo.jpg")          # path or (h, w[, 1|3|4]) uint8 array
+    p.class_deg, p.theta_deg, p.probabilities
+
+Grayscale pictures are repeated to three channels; RGBA pictures are put on white; 16-bit
+pictures are scaled to 8 bits. The prediction averages the picture and its mirror image (with
+mirrored classes), which makes left/right mistakes rarer at little cost.
+"""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from carbody.errors import ViewError
+from carbody.view.labels import CLASS_ANGLES_DEG, MIRROR_PERMUTATION, N_CLASSES, continuous_estimate
+
+#: The weights shipped with the package.
+SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "view_mobilenetv2.pt"
+
+#: Pictures smaller than this on either side are refused (pixels).
+MIN_IMAGE_SIDE = 16
+
+
+@dataclass
+class ViewPrediction:
+    """The classifier's answer.
+
+    Attributes:
+        class_index: 0..23, the class k of θ_k = 15°·k.
+        class_deg: θ_k in degrees (0 front, 90 left side, 180 rear, 270 right side).
+        theta_deg: continuous estimate in [0, 360), degrees.
+        confidence: probability of the top class.
+        probabilities: (24,) float, class probabilities (sum 1).
+    """
+
+    class_index: int
+    class_deg: float
+    theta_deg: float
+    confidence: float
+    probabilities: np.ndarray
+
+    @property
+    def side(self) -> str:
+        """``front``, ``rear``, ``left`` or ``right`` (which side of the car the camera sees)."""
+        if self.class_deg in (0.0, 180.0):
+            return "front" if self.class_deg == 0.0 else "rear"
+        return "left" if self.class_deg < 180.0 else "right"
+
+    @property
+    def paper_class_deg(self) -> float:
+        """The paper's 13-class label (0°–180°): right-side views fold onto their mirror."""
+        return self.class_deg if self.class_deg <= 180.0 else 360.0 - self.class_deg
+
+    def as_dict(self) -> dict:
+        return {"class_index": self.class_index, "class_deg": self.class_deg, "theta_deg": round(self.theta_deg, 2),
+                "side": self.side, "paper_class_deg": self.paper_class_deg,
+                "confidence": round(self.confidence, 4),
+                "probabilities": {f"{int(a)}": round(float(p), 4) for a, p in zip(CLASS_ANGLES_DEG, self.probabilities)}}
+
+
+def read_image(image) -> np.ndarray:
+    """(h, w, 3) uint8 RGB from a path or an array (gray, gray+alpha, RGB, RGBA; 8 or 16 bit).
+
+    Raises:
+        ViewError: missing or empty file, not an image, empty or tiny picture.
+    """
+    import cv2
+
+    if isinstance(image, (str, Path)):
+        path = Path(image)
+        if not path.is_file():
+            raise ViewError(f"{path}: no such image file")
+        data = np.fromfile(path, dtype=np.uint8)
+        if data.size == 0:
+            raise ViewError(f"{path}: the file is empty")
+        arr = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+        if arr is None:
+            raise ViewError(f"{path}: not an image (cannot decode it)")
+        if arr.ndim == 3 and arr.shape[2] >= 3:    # OpenCV decodes to BGR(A)
+            arr = cv2.cvtColor(arr, cv2.COLOR_BGRA2RGBA if arr.shape[2] == 4 else cv2.COLOR_BGR2RGB)
+        name = str(path)
+    else:
+        arr = np.asarray(image)
+        name = "image"
+    if arr.size == 0 or arr.ndim not in (2, 3):
+        raise ViewError(f"{name}: empty or not a picture (shape {arr.shape})")
+    if arr.ndim == 3 and arr.shape[2] not in (1, 2, 3, 4):
+        raise ViewError(f"{name}: {arr.shape[2]} channels (need 1, 2, 3 or 4)")
+    h, w = arr.shape[:2]
+    if min(h, w) < MIN_IMAGE_SIDE:
+        raise ViewError(f"{name}: {w}x{h} px is too small (need at least {MIN_IMAGE_SIDE} px a side)")
+    if arr.dtype == np.uint16:
+        arr = (arr / 257.0).round().astype(np.uint8)
+    elif arr.dtype == bool:
+        arr = arr.astype(np.uint8) * 255
+    elif np.issubdtype(arr.dtype, np.floating):
+        if not np.all(np.isfinite(arr)):
+            raise ViewError(f"{name}: holds NaN or infinite values")
+        arr = np.clip(arr * (255.0 if arr.max() <= 1.0 else 1.0), 0, 255).round().astype(np.uint8)
+    elif arr.dtype != np.uint8:
+        arr = np.clip(arr, 0, 255).astype(np.uint8)
+    if arr.ndim == 2:
+        arr = arr[..., None]
+    c = arr.shape[2]
+    if c in (2, 4):                                 # alpha: put the picture on white
+        alpha = arr[..., -1:].astype(np.float32) / 255.0
+        colour = arr[..., :-1].astype(np.float32)
+        arr = (colour * alpha + 255.0 * (1 - alpha)).round().astype(np.uint8)
+        c -= 1
+    if c == 1:
+        arr = np.repeat(arr, 3, axis=2)
+    return np.ascontiguousarray(arr)
+
+
+@functools.lru_cache(maxsize=4)
+def load_classifier(weights: str | None = None):
+    """(model in eval mode, metadata dict) from a weights file (default: the shipped one).
+
+    Raises:
+        ViewError: missing or unreadable weights file.
+    """
+    import torch
+
+    from carbody.view.network import build_mobilenet_v2
+
+    path = Path(weights) if weights else SHIPPED_WEIGHTS
+    if not path.is_file():
+        raise ViewError(f"{path}: no such weights file"
+                        + (" (the package ships without trained weights)" if not weights else ""))
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+        model = build_mobilenet_v2(int(payload["num_classes"]), width_mult=float(payload.get("width_mult", 1.0)))
+        model.load_state_dict({k: v.float() if v.is_floating_point() else v
+                               for k, v in payload["state_dict"].items()})
+    except ViewError:
+        raise
+    except Exception as exc:  # a corrupt file can fail in many ways inside torch
+        raise ViewError(f"{path}: not a view-classifier weights file ({type(exc).__name__})") from None
+    if int(payload["num_classes"]) != N_CLASSES:
+        raise ViewError(f"{path}: has {payload['num_classes']} classes, expected {N_CLASSES}")
+    model.eval()
+    meta = {k: v for k, v in payload.items() if k != "state_dict"}
+    return model, meta
+
+
+def predict_probabilities(images: list | np.ndarray, weights: str | Path | None = None,
+                          mirror_average: bool = True) -> np.ndarray:
+    """(B, 24) class probabilities of a batch of pictures (paths or arrays)."""
+    import torch
+
+    from carbody.view.train import to_square_input, to_tensor
+
+    x = np.stack([to_square_input(read_image(im)) for im in images])   # bad input first
+    model, _ = load_classifier(str(weights) if weights else None)
+    with torch.no_grad():
+        p = torch.softmax(model(to_tensor(x)), 1).numpy()
+        if mirror_average:
+            pm = torch.softmax(model(to_tensor(x[:, :, ::-1])), 1).numpy()
+            p = (p + pm[:, MIRROR_PERMUTATION]) / 2
+    return p
+
+
+def predict_view(image, weights: str | Path | None = None, mirror_average: bool = True) -> ViewPrediction:
+    """The view angle of one car picture (path or array); see :class:`ViewPrediction`.
+
+    Raises:
+        ViewError: unreadable, empty or tiny picture; missing or bad weights.
+    """
+    p = predict_probabilities([image], weights, mirror_average)[0]
+    k = int(np.argmax(p))
+    return ViewPrediction(k, float(CLASS_ANGLES_DEG[k]), continuous_estimate(p), float(p[k]), p)

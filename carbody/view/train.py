@@ -1,0 +1,262 @@
+"""Training of the view classifier (paper III.B): MobileNetV2 from scratch on the rendered set.
+
+Paper settings: 64 × 64 input, learning rate 0.001 (Adam), 50 epochs, batch 64, 8:2 split —
+here the split is the data set's own split by car (see :mod:`carbody.view.dataset`). Training
+augments each batch: a left–right flip (its label becomes the mirror class), a shift of up to
+4 px, brightness/contrast jitter and occasional grayscale, so photos that differ from the
+renders in these ways still classify. The final epoch's weights are saved (fp16) with the
+training history; validation never selects anything.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from carbody.errors import ViewError
+from carbody.view.labels import CLASS_ANGLES_DEG, MIRROR_PERMUTATION, N_CLASSES
+
+#: Network input side, pixels (paper: 64).
+INPUT_SIZE = 64
+
+#: Input normalisation: (x / 255 − MEAN) / STD per channel.
+MEAN = 0.5
+STD = 0.25
+
+
+@dataclass
+class TrainConfig:
+    """Hyper-parameters (paper III.B defaults)."""
+
+    epochs: int = 50
+    batch_size: int = 64
+    lr: float = 0.001
+    width_mult: float = 1.0
+    seed: int = 0
+    threads: int = 1
+    augment: bool = True
+
+
+@dataclass
+class History:
+    """Per-epoch curves (the paper's Fig. 5) and timing."""
+
+    train_loss: list[float] = field(default_factory=list)
+    train_acc: list[float] = field(default_factory=list)
+    val_loss: list[float] = field(default_factory=list)
+    val_acc: list[float] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def to_square_input(image: np.ndarray, size: int = INPUT_SIZE) -> np.ndarray:
+    """(size, size, 3) uint8 from an (h, w, 3) uint8 RGB picture: padded to a square by
+    repeating its border (keeps the car's aspect ratio), then area-resized."""
+    import cv2
+
+    h, w = image.shape[:2]
+    if h != w:
+        d = abs(h - w)
+        a, b = d // 2, d - d // 2
+        pad = ((a, b), (0, 0)) if h < w else ((0, 0), (a, b))
+        image = cv2.copyMakeBorder(image, *pad[0], *pad[1], cv2.BORDER_REPLICATE)
+    interp = cv2.INTER_AREA if image.shape[0] > size else cv2.INTER_LINEAR
+    return cv2.resize(image, (size, size), interpolation=interp)
+
+
+def to_tensor(images: np.ndarray):
+    """(B, 3, H, W) float32 torch tensor from (B, H, W, 3) uint8."""
+    import torch
+
+    x = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2).float()
+    return (x / 255.0 - MEAN) / STD
+
+
+def load_images(dataset_dir: str | Path, rows: list[dict], progress: bool = True) -> np.ndarray:
+    """(N, 64, 64, 3) uint8 network inputs of the rows' images."""
+    import cv2
+    from tqdm import tqdm
+
+    root = Path(dataset_dir)
+    out = np.empty((len(rows), INPUT_SIZE, INPUT_SIZE, 3), dtype=np.uint8)
+    for i, r in enumerate(tqdm(rows, desc="load", unit="img", disable=not progress, leave=False)):
+        img = cv2.imread(str(root / r["file"]), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ViewError(f"{root / r['file']}: not a readable image")
+        out[i] = to_square_input(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
+    return out
+
+
+def augment_batch(x: np.ndarray, y: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Flip (label mirrored), shift ≤ 4 px, brightness/contrast jitter, 10 % grayscale."""
+    x = x.copy()
+    y = y.copy()
+    n = len(x)
+    flip = rng.random(n) < 0.5
+    x[flip] = x[flip, :, ::-1]
+    y[flip] = MIRROR_PERMUTATION[y[flip]]
+    padded = np.pad(x, ((0, 0), (4, 4), (4, 4), (0, 0)), mode="edge")
+    dx, dy = rng.integers(0, 9, n), rng.integers(0, 9, n)
+    for i in range(n):
+        x[i] = padded[i, dy[i]:dy[i] + INPUT_SIZE, dx[i]:dx[i] + INPUT_SIZE]
+    xf = x.astype(np.float32)
+    contrast = rng.uniform(0.75, 1.25, (n, 1, 1, 1))
+    bright = rng.uniform(-25, 25, (n, 1, 1, 1))
+    mean = xf.mean(axis=(1, 2, 3), keepdims=True)
+    xf = (xf - mean) * contrast + mean + bright
+    grey = rng.random(n) < 0.1
+    xf[grey] = xf[grey].mean(axis=3, keepdims=True)
+    return np.clip(xf, 0, 255).astype(np.uint8), y
+
+
+def evaluate(model, x: np.ndarray, y: np.ndarray, batch_size: int = 256) -> tuple[float, float, np.ndarray]:
+    """(mean cross-entropy, top-1 accuracy, (N, 24) probabilities) of a model on inputs."""
+    import torch
+
+    model.eval()
+    probs, losses = [], []
+    with torch.no_grad():
+        for i in range(0, len(x), batch_size):
+            logits = model(to_tensor(x[i:i + batch_size]))
+            losses.append(torch.nn.functional.cross_entropy(
+                logits, torch.from_numpy(y[i:i + batch_size]).long(), reduction="sum").item())
+            probs.append(torch.softmax(logits, 1).numpy())
+    p = np.concatenate(probs) if probs else np.zeros((0, N_CLASSES))
+    return float(sum(losses) / max(1, len(x))), float((p.argmax(1) == y).mean()) if len(y) else 0.0, p
+
+
+def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: TrainConfig = TrainConfig(),
+                          plot: str | Path | None = None, progress: bool = True) -> History:
+    """Train MobileNetV2 on a rendered data set and save the weights (fp16) and a Fig. 5 plot.
+
+    Args:
+        dataset_dir: a folder written by :func:`carbody.view.dataset.render_dataset` (or class
+            folders of images named by angle).
+        output: the weights file (``.pt``) to write.
+        plot: loss/accuracy curves PNG (default: ``output`` with ``.png``).
+
+    Returns:
+        The :class:`History`.
+
+    Raises:
+        ViewError: unreadable data set, no training or validation images, bad settings.
+    """
+    import torch
+    from tqdm import tqdm
+
+    from carbody.view.dataset import read_manifest
+    from carbody.view.network import build_mobilenet_v2
+
+    if config.epochs < 1 or config.batch_size < 1 or not (config.lr > 0):
+        raise ViewError("epochs, batch size and learning rate must be positive")
+    output = Path(output)
+    if output.suffix != ".pt":
+        raise ViewError(f"{output}: the weights file must end in .pt")
+    rows = read_manifest(dataset_dir)
+    train_rows = [r for r in rows if r["split"] == "train"]
+    val_rows = [r for r in rows if r["split"] == "val"]
+    if not train_rows or not val_rows:
+        raise ViewError(f"{dataset_dir}: needs both training and validation images "
+                        f"({len(train_rows)} and {len(val_rows)})")
+    torch.set_num_threads(max(1, int(config.threads)))
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    x_train = load_images(dataset_dir, train_rows, progress)
+    y_train = np.array([r["class_index"] for r in train_rows], dtype=np.int64)
+    x_val = load_images(dataset_dir, val_rows, progress)
+    y_val = np.array([r["class_index"] for r in val_rows], dtype=np.int64)
+
+    model = build_mobilenet_v2(N_CLASSES, width_mult=config.width_mult)
+    opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+    hist = History()
+    t0 = time.perf_counter()
+    bar = tqdm(range(config.epochs), desc="train-view", unit="epoch", disable=not progress)
+    for _ in bar:
+        model.train()
+        order = rng.permutation(len(x_train))
+        loss_sum, correct = 0.0, 0
+        for i in range(0, len(order), config.batch_size):
+            idx = order[i:i + config.batch_size]
+            if len(idx) < 2:          # BatchNorm needs two samples
+                continue
+            xb, yb = x_train[idx], y_train[idx]
+            if config.augment:
+                xb, yb = augment_batch(xb, yb, rng)
+            logits = model(to_tensor(xb))
+            target = torch.from_numpy(yb)
+            loss = torch.nn.functional.cross_entropy(logits, target)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            loss_sum += loss.item() * len(idx)
+            correct += int((logits.argmax(1) == target).sum())
+        hist.train_loss.append(loss_sum / len(order))
+        hist.train_acc.append(correct / len(order))
+        vl, va, _ = evaluate(model, x_val, y_val)
+        hist.val_loss.append(vl)
+        hist.val_acc.append(va)
+        bar.set_postfix(loss=f"{hist.train_loss[-1]:.3f}", acc=f"{hist.train_acc[-1]:.3f}",
+                        val_loss=f"{vl:.3f}", val_acc=f"{va:.3f}")
+    hist.seconds = time.perf_counter() - t0
+    save_weights(model, output, config, hist, dataset_dir, rows)
+    plot_history(hist, plot or output.with_suffix(".png"))
+    return hist
+
+
+def save_weights(model, output: Path, config: TrainConfig, hist: History, dataset_dir, rows) -> Path:
+    """fp16 state dict plus what a reader needs (classes, input, normalisation, history), atomically."""
+    import json
+    import os
+
+    import torch
+
+    meta_path = Path(dataset_dir) / "dataset.json"
+    dataset_meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    payload = {
+        "format": "carbody-view-mobilenetv2/1",
+        "state_dict": {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()},
+        "num_classes": N_CLASSES,
+        "classes_deg": CLASS_ANGLES_DEG.tolist(),
+        "width_mult": config.width_mult,
+        "input_size": INPUT_SIZE,
+        "mean": MEAN,
+        "std": STD,
+        "config": vars(config) if not hasattr(config, "__dataclass_fields__") else
+        {k: getattr(config, k) for k in config.__dataclass_fields__},
+        "history": {"train_loss": hist.train_loss, "train_acc": hist.train_acc,
+                    "val_loss": hist.val_loss, "val_acc": hist.val_acc, "seconds": hist.seconds},
+        "dataset": {"images": len(rows), "train_images": sum(r["split"] == "train" for r in rows),
+                    "val_images": sum(r["split"] == "val" for r in rows),
+                    "validation_templates": dataset_meta.get("validation_templates", []),
+                    "seed": dataset_meta.get("seed"), "variation": dataset_meta.get("variation")},
+    }
+    output.parent.mkdir(parents=True, exist_ok=True)
+    tmp = output.with_name(f".{output.name}.{os.getpid()}.tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, output)
+    return output
+
+
+def plot_history(hist: History, path: str | Path) -> Path:
+    """The paper's Fig. 5: (a) training/validation accuracy, (b) training/validation loss, per epoch."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    epochs = np.arange(1, len(hist.train_loss) + 1)
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    a.plot(epochs, hist.train_acc, label="training")
+    a.plot(epochs, hist.val_acc, label="validation (held-out cars)")
+    a.set(xlabel="epoch", ylabel="accuracy", title="(a) accuracy", ylim=(0, 1.02))
+    b.plot(epochs, hist.train_loss, label="training")
+    b.plot(epochs, hist.val_loss, label="validation (held-out cars)")
+    b.set(xlabel="epoch", ylabel="cross-entropy loss", title="(b) loss")
+    for ax in (a, b):
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,233 @@
+"""The view classifier: MobileNetV2 as published, labels, picture input, data set, training, CLI."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from carbody.errors import ViewError
+from carbody.view.labels import (CLASS_ANGLES_DEG, MIRROR_PERMUTATION, N_CLASSES, angular_difference,
+                                 class_of, continuous_estimate, mirror_class)
+from tests.conftest import run_cli
+
+torch = pytest.importorskip("torch")
+
+
+# ------------------------------------------------------------------------------------- network
+
+def n_params(model) -> int:
+    return sum(p.numel() for p in model.parameters())
+
+
+def test_mobilenet_v2_has_the_reference_parameter_count():
+    from carbody.view.network import build_mobilenet_v2, expected_parameter_count
+
+    assert n_params(build_mobilenet_v2(1000)) == 3_504_872          # torchvision mobilenet_v2()
+    assert n_params(build_mobilenet_v2(N_CLASSES)) == expected_parameter_count(N_CLASSES) == 2_254_616
+
+
+def test_mobilenet_v2_structure_inverted_residuals_and_linear_bottlenecks():
+    from torch import nn
+
+    from carbody.view.network import build_mobilenet_v2
+
+    model = build_mobilenet_v2(N_CLASSES)
+    blocks = [m for m in model.modules() if type(m).__name__ == "InvertedResidual"]
+    assert len(blocks) == 17                                        # 1 + 2 + 3 + 4 + 3 + 3 + 1
+    assert sum(b.use_skip for b in blocks) == 10                    # stride 1 and same width
+    for b in blocks:                                                # projection is linear: ends in BN
+        assert isinstance(b.conv[-1], nn.BatchNorm2d) and isinstance(b.conv[-2], nn.Conv2d)
+        assert not any(isinstance(m, nn.ReLU6) for m in list(b.conv)[-2:])
+    model.eval()
+    with torch.no_grad():
+        out = model(torch.zeros(2, 3, 64, 64))
+    assert out.shape == (2, N_CLASSES)
+
+
+def test_width_multiplier_shrinks_the_network():
+    from carbody.view.network import build_mobilenet_v2
+
+    assert n_params(build_mobilenet_v2(N_CLASSES, width_mult=0.5)) < 0.6 * n_params(build_mobilenet_v2(N_CLASSES))
+
+
+# ------------------------------------------------------------------------------------- labels
+
+def test_classes_cover_the_circle_and_mirror():
+    assert N_CLASSES == 24 and CLASS_ANGLES_DEG[6] == 90 and CLASS_ANGLES_DEG[18] == 270
+    assert class_of(7.4) == 0 and class_of(352.6) == 0 and class_of(-15) == 23 and class_of(100) == 7
+    assert mirror_class(class_of(30)) == class_of(330) and mirror_class(0) == 0 and mirror_class(12) == 12
+    assert np.array_equal(MIRROR_PERMUTATION[MIRROR_PERMUTATION], np.arange(N_CLASSES))
+    assert angular_difference(350, 10) == 20
+
+
+def test_continuous_estimate_moves_toward_the_runner_up():
+    p = np.zeros(N_CLASSES)
+    p[2], p[3] = 0.6, 0.4                        # between 30° and 45°, nearer 30°
+    assert 30 < continuous_estimate(p) < 37.5
+    p = np.zeros(N_CLASSES)
+    p[0], p[23] = 0.5, 0.5                       # wraps: halfway between 345° and 0°
+    assert angular_difference(continuous_estimate(p), 352.5) < 1e-6
+    p = np.zeros(N_CLASSES)
+    p[6], p[18] = 0.55, 0.45                     # far-away mass is ignored
+    assert continuous_estimate(p) == pytest.approx(90)
+
+
+# ------------------------------------------------------------------------------------- pictures
+
+def test_read_image_handles_gray_rgba_and_16_bit(tmp_path):
+    import cv2
+
+    from carbody.view.predict import read_image
+
+    gray = np.full((40, 50), 100, dtype=np.uint8)
+    assert read_image(gray).shape == (40, 50, 3)
+    cv2.imwrite(str(tmp_path / "g.png"), gray)
+    assert np.all(read_image(tmp_path / "g.png") == 100)
+    rgba = np.zeros((40, 50, 4), dtype=np.uint8)
+    rgba[..., 0] = 255
+    rgba[:, :25, 3] = 255                         # left half opaque red, right half transparent
+    cv2.imwrite(str(tmp_path / "a.png"), cv2.cvtColor(rgba, cv2.COLOR_RGBA2BGRA))
+    img = read_image(tmp_path / "a.png")
+    assert tuple(img[0, 0]) == (255, 0, 0) and tuple(img[0, 49]) == (255, 255, 255)
+    deep = np.full((32, 32, 3), 65535, dtype=np.uint16)
+    cv2.imwrite(str(tmp_path / "d.png"), deep)
+    assert np.all(read_image(tmp_path / "d.png") == 255)
+
+
+def test_read_image_refuses_bad_files(tmp_path):
+    from carbody.view.predict import read_image
+
+    (tmp_path / "empty.png").write_bytes(b"")
+    (tmp_path / "text.png").write_text("not a picture at all")
+    with pytest.raises(ViewError, match="empty"):
+        read_image(tmp_path / "empty.png")
+    with pytest.raises(ViewError, match="not an image"):
+        read_image(tmp_path / "text.png")
+    with pytest.raises(ViewError, match="no such"):
+        read_image(tmp_path / "missing.png")
+    with pytest.raises(ViewError, match="too small"):
+        read_image(np.zeros((8, 300, 3), dtype=np.uint8))
+    with pytest.raises(ViewError, match="empty"):
+        read_image(np.zeros((0, 0, 3), dtype=np.uint8))
+
+
+def test_square_input_keeps_the_aspect_ratio():
+    from carbody.view.train import to_square_input
+
+    wide = np.zeros((100, 200, 3), dtype=np.uint8)
+    wide[:, :, 1] = 255                           # green everywhere, edges replicated
+    wide[40:60, 50:150] = 255
+    sq = to_square_input(wide)
+    assert sq.shape == (64, 64, 3)
+    rows = np.nonzero((sq == 255).all(axis=2).any(axis=1))[0]
+    cols = np.nonzero((sq == 255).all(axis=2).any(axis=0))[0]
+    assert (np.ptp(cols) + 1) / (np.ptp(rows) + 1) == pytest.approx(5.0, rel=0.25)
+
+
+# ------------------------------------------------------------------------------------- data set
+
+def toy_body(wireframe):
+    """A stand-in body for tests that do not need carbody.surface: a box for the lower body and
+    a smaller glass box toward the rear for the cabin, sized from the wireframe (mm)."""
+    import cadquery as cq
+
+    p = wireframe.control_points
+    length, half_w = np.ptp(p[:, 1]), p[:, 0].max()
+    z0, z1 = p[:, 2].min(), p[:, 2].max()
+    belt = z0 + 0.55 * (z1 - z0)
+    lower = cq.Workplane().box(2 * half_w, length, belt - z0).translate((0, p[:, 1].min() + length / 2, (z0 + belt) / 2))
+    cabin = cq.Workplane().box(1.7 * half_w, 0.45 * length, z1 - belt).translate(
+        (0, p[:, 1].min() + 0.6 * length, (belt + z1) / 2))
+    return [("door", lower.val()), ("side_window", cabin.val())]
+
+
+def test_dataset_is_deterministic_and_split_by_car(tmp_path):
+    from carbody.view.dataset import read_manifest, render_dataset
+
+    kw = dict(count=30, seed=3, bodies_per_template=2, surface_body=toy_body, progress=False,
+              templates=["Toyota Camry XV70", "Volvo V60", "Ford F-150 SuperCrew 5.5 ft", "Mazda MX-5 ND",
+                         "Tesla Model 3"])
+    render_dataset(tmp_path / "a", **kw)
+    render_dataset(tmp_path / "b", **kw)
+    rows = read_manifest(tmp_path / "a")
+    assert len(rows) == 30
+    for r in rows:
+        assert (tmp_path / "a" / r["file"]).read_bytes() == (tmp_path / "b" / r["file"]).read_bytes()
+    train = {r["template"] for r in rows if r["split"] == "train"}
+    val = {r["template"] for r in rows if r["split"] == "val"}
+    assert train and val and not train & val
+    assert not {r["body"] for r in rows if r["split"] == "train"} & {r["body"] for r in rows if r["split"] == "val"}
+    assert any(int(r["mirrored"]) for r in rows) and any(r["class_index"] > 12 for r in rows)
+    with pytest.raises(ViewError, match="already holds"):
+        render_dataset(tmp_path / "a", **kw)
+
+
+def test_mirrored_classes_are_flipped_renders(tmp_path):
+    """A right-side class image is the left-side render flipped: the nose points right."""
+    from carbody.render import Look, Scene, tessellate
+    from carbody.templates import load_templates
+    from carbody.view.dataset import Shot, Variation, shoot
+
+    _, wf = load_templates()[0]
+    faces = toy_body(wf)
+    scene = Scene(tessellate(faces), size=(128, 128))
+    look = Look(ambient=1, diffuse=0, specular=0, paint=(1, 0, 0), glass=(0, 0, 1))
+    kw = dict(elevation_deg=0.0, roll_deg=0.0, distance_lengths=0.0, fill=0.9, offset=(0.0, 0.0),
+              background="white", paint=(1, 0, 0))
+    left = shoot(scene, Shot(6, 90.0, 90.0, False, **kw), look, 4000.0, np.random.default_rng(0), Variation(colour=False, background=False))
+    right = shoot(scene, Shot(18, 270.0, 90.0, True, **kw), look, 4000.0, np.random.default_rng(0), Variation(colour=False, background=False))
+    assert np.array_equal(right, left[:, ::-1])
+    glass_cols = np.nonzero(((left[..., 2] > 150) & (left[..., 0] < 100)).any(axis=0))[0]
+    assert glass_cols.mean() > 64        # cabin toward the rear = right of the picture at 90°
+
+
+@pytest.fixture(scope="module")
+def toy_dataset(tmp_path_factory):
+    from carbody.view.dataset import render_dataset
+
+    out = tmp_path_factory.mktemp("toyset")
+    render_dataset(out, count=96, seed=0, bodies_per_template=1, surface_body=toy_body, progress=False,
+                   templates=["Toyota Camry XV70", "Volvo V60", "Ford F-150 SuperCrew 5.5 ft",
+                              "Mazda MX-5 ND", "Honda City e:HEV"])
+    return out
+
+
+def test_short_training_lowers_the_loss(toy_dataset, tmp_path):
+    """A few epochs on a few dozen rendered images: the loss falls, weights and Fig. 5 plot written,
+    and the weights load back for prediction."""
+    from carbody.view.predict import load_classifier, predict_view
+    from carbody.view.train import TrainConfig, train_view_classifier
+
+    out = tmp_path / "w.pt"
+    hist = train_view_classifier(toy_dataset, out, TrainConfig(epochs=6, batch_size=16, augment=False),
+                                 progress=False)
+    assert len(hist.train_loss) == 6
+    assert min(hist.train_loss[-2:]) < 0.8 * hist.train_loss[0]
+    assert out.stat().st_size < 5_000_000 and out.with_suffix(".png").stat().st_size > 5000
+    _, meta = load_classifier(str(out))
+    assert meta["history"]["train_loss"] == pytest.approx(hist.train_loss)
+    img = next((toy_dataset / "images").rglob("*.png"))
+    p = predict_view(img, weights=out)
+    assert p.probabilities.shape == (N_CLASSES,) and p.probabilities.sum() == pytest.approx(1, abs=1e-5)
+
+
+def test_training_refuses_a_bad_dataset(tmp_path):
+    from carbody.view.train import train_view_classifier
+
+    with pytest.raises(ViewError, match="no such"):
+        train_view_classifier(tmp_path / "nothing", tmp_path / "w.pt")
+    (tmp_path / "set" / "banana").mkdir(parents=True)
+    with pytest.raises(ViewError, match="angle"):
+        train_view_classifier(tmp_path / "set", tmp_path / "w.pt")
+
+
+# ------------------------------------------------------------------------------------- CLI
+
+def test_view_cli_refuses_bad_input_in_one_line(tmp_path):
+    (tmp_path / "bad.jpg").write_text("hello")
+    proc = run_cli("view", str(tmp_path / "bad.jpg"))
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "not an image" in proc.stderr
+    proc = run_cli("train-view", str(tmp_path / "nothing"), "-o", str(tmp_path / "w.pt"))
+    assert proc.returncode == 2 and "no such" in proc.stderr
