@@ -42,3 +42,7 @@ class KeypointError(FitError):
 
 class ImageError(CarbodyError):
     """An image file cannot be read."""
+
+
+class SurfaceError(CarbodyError):
+    """A region of the wireframe cannot be surfaced (open loop, self-crossing, zero area)."""

@@ -17,3 +17,23 @@ CUBIC_TOL_MM = 1e-6
 
 #: Dimensions of a built template must match its design table within this fraction.
 DIMENSION_REL_TOL = 0.01
+
+# ---- surfaces (carbody.surface, carbody.occ.faces/sewing/checks)
+
+#: Boundary sample spacing of the skeleton algorithm, normalised units (paper IV.B; ~50 mm).
+SKELETON_SPACING_NORM = 20.0
+
+#: A region loop whose consecutive curves are further apart than this (mm) does not close.
+LOOP_CLOSE_TOL_MM = 1e-3
+
+#: A region whose projected area is below this fraction of its perimeter squared is degenerate.
+DEGENERATE_AREA_REL = 1e-4
+
+#: Sewing tolerance (mm); faces are built to meet exactly, so this only absorbs rounding.
+SEW_TOL_MM = 1e-3
+
+#: Required after sewing: largest edge/vertex tolerance, wireframe-to-face distance (mm).
+SHELL_TOL_MM = 0.01
+
+#: Inner patch edges of a region must meet within this normal angle (degrees; CATIA default G1).
+G1_TOL_DEG = 0.5

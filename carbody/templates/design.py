@@ -463,15 +463,20 @@ def build_junctions_and_curves(d: DesignTable) -> dict[str, np.ndarray]:
     # ---- doors and sill
     dfb = np.array([hw, sill_f[1] + 70, z_sill_top])
     drb = np.array([hw, sill_r[1] - 70, z_sill_top])
-    bps = np.array([hw, y_b, z_sill_top])
-    srd = np.array([hw, (y_b + drb[1]) / 2, z_sill_top])
+    # The B-pillar foot stays ahead of the rear door shut line (a coupe's long door).
+    bps = np.array([hw, min(y_b, dfb[1] + 0.6 * (drb[1] - dfb[1])), z_sill_top])
+    srd = np.array([hw, (bps[1] + drb[1]) / 2, z_sill_top])
     put("sill_top", smooth_chain([dfb, bps, srd, drb], start_tangent=[0, 1, 0], end_tangent=[0, 1, 0]))
     c["sill_front_end"] = smooth_chain([dfb, sill_f], end_tangent=[0, 0, -1])[0]
     c["sill_rear_end"] = smooth_chain([drb, sill_r], end_tangent=[0, 0, -1])[0]
     put("sill_bottom", smooth_chain(
         [sill_f, _lerp(sill_f, sill_r, 1 / 3), _lerp(sill_f, sill_r, 2 / 3), sill_r]))
-    c["door_front_edge"] = smooth_chain([wfb, dfb], end_tangent=[0, 0, -1])[0]
-    c["door_rear_edge"] = smooth_chain([wrb, drb], end_tangent=[0, 0, -1])[0]
+    # Door shut lines leave the belt line heading down (not back along the belt), so the door,
+    # fender and rear-quarter regions have a real corner there and a non-crossing outline.
+    c["door_front_edge"] = smooth_chain([wfb, dfb], start_tangent=_unit(dfb - wfb) + np.array([0, 0, -1.0]),
+                                        end_tangent=[0, 0, -1])[0]
+    c["door_rear_edge"] = smooth_chain([wrb, drb], start_tangent=_unit(drb - wrb) + np.array([0, 0, -1.0]),
+                                       end_tangent=[0, 0, -1])[0]
     return c
 
 

@@ -1,0 +1,16 @@
+"""Surfaces (paper IV–V): 13 regions -> skeletons -> control nets -> Bezier faces -> one shell.
+
+Public API::
+
+    from carbody.surface import build_body, Body
+    body = build_body(wireframe)   # body.shape (TopoDS_Shell), body.faces, body.report
+
+Stages, one module each: :mod:`~carbody.surface.regions` (boundary loops, projection,
+samples), :mod:`~carbody.surface.skeleton` (optimal pairs, Algorithm 1),
+:mod:`~carbody.surface.control_net` (control curves, DTW, quad nets),
+:mod:`~carbody.surface.quality` (G0/G1/Jacobian), :mod:`~carbody.surface.body` (the pipeline).
+OCCT lives in :mod:`carbody.occ` (faces, sewing, checks, step_body).
+"""
+from carbody.surface.body import Body, build_body, region_patches, skeletons
+
+__all__ = ["Body", "build_body", "region_patches", "skeletons"]

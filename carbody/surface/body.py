@@ -1,0 +1,201 @@
+"""The surface pipeline: wireframe -> 13 regions -> skeletons -> control nets -> sewn Bezier shell.
+
+``build_body(wireframe)`` is the one call (the view classifier and the CLI use it)::
+
+    from carbody.surface import build_body
+    body = build_body(wireframe)      # a carbody.wireframe.Wireframe (mm)
+    body.shape                        # TopoDS_Shell, both halves, sewn
+    body.faces                        # [(region name, TopoDS_Face)], every face of body.shape
+    body.report                       # quality figures (see build_body)
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from carbody.surface.control_net import FacePatch, RegionNet, region_net
+from carbody.surface.quality import region_report, seam_quality
+from carbody.surface.regions import (BEGIN, END, BoundarySamples, RegionOutline, boundary_samples,
+                                     region_outlines)
+from carbody.surface.skeleton import OptimalPair, optimal_pairs, skeleton_line
+from carbody.tolerances import NORMALISED_WHEELBASE, SKELETON_SPACING_NORM
+from carbody.topology import Topology, load_topology
+
+#: A part is not bisected when a side would be thinner than this many sample spacings.
+MIN_HEIGHT_SPACINGS = 2.0
+
+#: Ribs closer than this many sample spacings (arc length on a side) are merged.
+MIN_GAP_SPACINGS = 0.6
+
+
+@dataclass
+class RegionSkeleton:
+    """One region's skeleton (paper IV): samples, optimal pairs and the skeleton line.
+
+    ``line`` is (k, 2) in the samples' plane frame (normalised units).
+    """
+
+    outline: RegionOutline
+    samples: BoundarySamples
+    pairs: list[OptimalPair]
+    line: np.ndarray
+
+
+@dataclass
+class Body:
+    """A surfaced car body.
+
+    Attributes:
+        name: the car.
+        shape: the sewn ``TopoDS_Shell`` of both halves (mm).
+        faces: [(region name, TopoDS_Face)] for every face of ``shape``, left half first.
+        report: quality figures: per region (faces, inner G0/G1, min scaled Jacobian), per seam
+            (G0 gap, G1 angle), shell checks, stage timings.
+        patches: the faces as Bezier nets (numpy), same order as ``faces``.
+        nets: each region's ribs and control curves.
+    """
+
+    name: str
+    shape: Any
+    faces: list[tuple[str, Any]]
+    report: dict
+    patches: list[FacePatch] = field(default_factory=list)
+    nets: list[RegionNet] = field(default_factory=list)
+
+
+def wheelbase_of(control_points: np.ndarray, topology: Topology | None = None) -> float:
+    """Wheelbase (mm) of a wireframe: distance between its two wheel centres in side view."""
+    from carbody.wireframe import wheel_centre
+
+    topo = topology or load_topology()
+    f, r = (wheel_centre(control_points, topo, s) for s in ("front", "rear"))
+    return float(np.hypot(*(r - f)))
+
+
+def region_skeleton(outline: RegionOutline, wheelbase_mm: float,
+                    spacing_norm: float = SKELETON_SPACING_NORM) -> RegionSkeleton:
+    """Project, sample and run Algorithm 1 on one region (paper IV.B–C)."""
+    samples = boundary_samples(outline, wheelbase_mm, spacing_norm)
+    pairs = optimal_pairs(samples.points2d, samples.normals2d, min_height=MIN_HEIGHT_SPACINGS * spacing_norm)
+
+    def middle(label):
+        idx = np.flatnonzero(samples.side == label)
+        return int(idx[len(idx) // 2]) if len(idx) else 0
+
+    line = skeleton_line(samples.points2d, pairs, middle(BEGIN), middle(END))
+    return RegionSkeleton(outline, samples, pairs, line)
+
+
+def skeletons(control_points: np.ndarray, wheelbase_mm: float | None = None,
+              topology: Topology | None = None) -> list[RegionSkeleton]:
+    """Skeletons of all regions of a wireframe (mm)."""
+    topo = topology or load_topology()
+    wb = wheelbase_mm or wheelbase_of(control_points, topo)
+    return [region_skeleton(o, wb) for o in region_outlines(control_points, topo)]
+
+
+def region_patches(control_points: np.ndarray, topology: Topology | None = None,
+                   timings: dict | None = None) -> tuple[list[RegionNet], list[RegionSkeleton]]:
+    """Control nets and Bezier patches (left half) of every region; numpy only."""
+    topo = topology or load_topology()
+    wb = wheelbase_of(control_points, topo)
+    spacing_mm = SKELETON_SPACING_NORM * wb / NORMALISED_WHEELBASE
+    t0 = time.perf_counter()
+    sk = skeletons(control_points, wb, topo)
+    t1 = time.perf_counter()
+    nets = [region_net(s.outline, s.samples, s.pairs, MIN_GAP_SPACINGS * spacing_mm) for s in sk]
+    t2 = time.perf_counter()
+    if timings is not None:
+        timings["skeleton_s"] = t1 - t0
+        timings["control_nets_s"] = t2 - t1
+    return nets, sk
+
+
+def build_body(wireframe, topology: Topology | None = None, check: bool = True) -> Body:
+    """Surface a wireframe: all 13 regions and their mirror sewn into one shell.
+
+    Args:
+        wireframe: a :class:`carbody.wireframe.Wireframe` (left half, mm).
+        check: run the OCCT shell checks (validity, free edges, tolerances) into the report.
+    Returns:
+        a :class:`Body`; ``report`` holds ``regions`` {name: {faces, inner_g0_mm,
+        inner_g1_deg, min_scaled_jacobian, pairs}}, ``seams`` {"a|b": {g0_mm, g1_deg}},
+        ``shell`` {valid, faces, free_edges, free_loops, max_tolerance_mm, ...} and ``timings_s``.
+    Raises:
+        SurfaceError: a region whose loop does not close, whose projected boundary crosses
+            itself, or which encloses no area (the message names the region).
+    """
+    from carbody.occ.faces import bezier_face
+    from carbody.occ.sewing import sew_faces
+
+    topo = topology or load_topology()
+    cp = wireframe.control_points
+    timings: dict[str, float] = {}
+    nets, sk = region_patches(cp, topo, timings)
+
+    t = time.perf_counter()
+    symmetric = {c.index for c in topo.curves
+                 if c.start in topo.symmetry_junctions and c.end in topo.symmetry_junctions}
+    left = [f for n in nets for f in n.faces]
+    patches_all = left + [f.mirrored(symmetric) for f in left]
+    splits = edge_splits(patches_all)
+    occ_faces = [bezier_face(f.net, face_side_splits(f, splits)) for f in patches_all]
+    timings["faces_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    shell, sewn = sew_faces(occ_faces)
+    timings["sewing_s"] = time.perf_counter() - t
+
+    report: dict[str, Any] = {"regions": {}, "seams": {}}
+    for n, s in zip(nets, sk):
+        r = region_report(n.faces)
+        r["pairs"] = len(s.pairs)
+        r["ribs"] = len(n.ribs)
+        report["regions"][n.name] = r
+    for (a, b), (g0, g1) in sorted(seam_quality(patches_all).items()):
+        report["seams"][f"{a}|{b}"] = {"g0_mm": g0, "g1_deg": g1}
+    if check:
+        from carbody.occ.checks import shell_checks
+
+        t = time.perf_counter()
+        report["shell"] = shell_checks(shell)
+        timings["checks_s"] = time.perf_counter() - t
+    report["timings_s"] = timings
+    faces = [(f.region, g) for f, g in zip(patches_all, sewn)]
+    return Body(wireframe.name, shell, faces, report, patches_all, nets)
+
+
+def edge_splits(patches: list[FacePatch]) -> dict[tuple[int, bool], np.ndarray]:
+    """Every face corner on each wireframe curve: {(curve, mirror): sorted curve parameters}.
+
+    Neighbouring faces split their sides at the union, so sewing meets identical edges.
+    """
+    found: dict[tuple[int, bool], list[float]] = {}
+    for f in patches:
+        for ref in f.sides.values():
+            if ref is not None:
+                found.setdefault(ref.key, []).extend((ref.t0, ref.t1))
+    out = {}
+    for key, ts in found.items():
+        ts = np.sort(np.asarray(ts))
+        keep = np.r_[True, np.diff(ts) > 1e-9]
+        out[key] = ts[keep]
+    return out
+
+
+def face_side_splits(face: FacePatch, splits: dict[tuple[int, bool], np.ndarray]) -> dict[str, np.ndarray]:
+    """Each side's split parameters in [0, 1] (side parameter, both ends included)."""
+    out = {}
+    for side, ref in face.sides.items():
+        if ref is None:
+            out[side] = np.array([0.0, 1.0])
+            continue
+        ts = splits[ref.key]
+        lo, hi = min(ref.t0, ref.t1), max(ref.t0, ref.t1)
+        inner = ts[(ts > lo + 1e-9) & (ts < hi - 1e-9)]
+        p = (inner - ref.t0) / (ref.t1 - ref.t0)
+        out[side] = np.r_[0.0, np.sort(p), 1.0]
+    return out

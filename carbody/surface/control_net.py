@@ -1,0 +1,417 @@
+"""Control curves, DTW-refined correspondences and the quad net of a region (paper V).
+
+A region's net is a sequence of *ribs*, cubic control curves from side B to side A:
+
+* rib 0 and the last rib are the region's begin and end curves;
+* the skeleton's optimal pairs that join side A to side B give inner ribs;
+* every junction between two curves of a side gets a rib too, so that each face edge on a side
+  lies on one wireframe cubic and is an exact sub-arc of it (de Casteljau split); its partner on
+  the other side comes from the DTW correspondence (dtaidistance, C) between the boundary
+  samples of the two sides between consecutive skeleton ribs (the paper's refinement).
+
+Inner control points of a rib are the blend of the begin and end curves' shapes, each
+normalised to a chord from (0, 0) to (1, 0) in its own frame, by the arc-length ratio of the
+rib's ends along the two sides (P1 by the ratio along the P0 side B, P2 by the ratio along the P3
+side A), mapped back between the rib's own end points (SPEC "Reading the paper's surface
+section").
+
+Between consecutive ribs k, k+1 one bicubic Bezier patch: rows rib k, rib k + f_k⁺/3,
+rib k+1 − f_{k+1}⁻/3, rib k+1, where the cross-derivative f = σ(u)·E(u) is the product of a
+linear scale σ (fixed at the two columns by the side sub-arcs) and a quadratic direction field
+E_k shared by both patches meeting at rib k. Both patches' cross-derivatives at rib k are then
+positive multiples of the same E_k(u), so their normals agree all along the rib: G1 inside a
+region wherever the wireframe sides themselves are G1.
+
+Everything here is numpy; no OCCT.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from carbody.surface.regions import (SIDE_A, SIDE_B, BoundarySamples, Chain, RegionOutline,
+                                     bezier_derivs, bezier_points, split_bezier)
+from carbody.surface.skeleton import OptimalPair
+
+#: Weight of the arc-length-proportional match blended into the DTW correspondence.
+DTW_BLEND = 0.3
+
+#: Face sides, in wire order: v = 0 (u 0 -> 1), u = 1 (v 0 -> 1), v = 1, u = 0.
+SIDES = ("v0", "u1", "v1", "u0")
+
+
+@dataclass
+class SideRef:
+    """A face side lying on a wireframe curve: side parameter p in [0, 1] is curve parameter
+    ``t0 + p (t1 - t0)`` of curve ``curve`` (index; ``mirror`` for the right-half copy)."""
+
+    curve: int
+    t0: float
+    t1: float
+    mirror: bool = False
+
+    @property
+    def key(self) -> tuple[int, bool]:
+        return self.curve, self.mirror
+
+
+@dataclass
+class FacePatch:
+    """One bicubic Bezier face of a region.
+
+    Attributes:
+        region: region name.
+        index: face number inside the region (0 at the begin curve).
+        net: (4, 4, 3) float, mm; ``net[i, j]`` is pole (u_i, v_j); u runs across the region
+            (rib direction), v along it. Normal S_u x S_v points out of the body.
+        sides: {"v0", "u1", "v1", "u0"} -> SideRef for sides on a wireframe curve, else None.
+        mirror: True for the right half.
+    """
+
+    region: str
+    index: int
+    net: np.ndarray
+    sides: dict[str, SideRef | None] = field(default_factory=dict)
+    mirror: bool = False
+
+    def mirrored(self, symmetric_curves: set[int]) -> "FacePatch":
+        """The right-half twin: x negated, u reversed so the normal still points outwards."""
+        net = self.net[::-1] * np.array([-1.0, 1.0, 1.0])
+
+        def m(ref: SideRef | None, flip: bool) -> SideRef | None:
+            if ref is None:
+                return None
+            t0, t1 = (ref.t1, ref.t0) if flip else (ref.t0, ref.t1)
+            return SideRef(ref.curve, t0, t1, ref.curve not in symmetric_curves)
+
+        s = self.sides
+        sides = {"v0": m(s["v0"], True), "v1": m(s["v1"], True), "u0": m(s["u1"], False),
+                 "u1": m(s["u0"], False)}
+        return FacePatch(self.region, self.index, net, sides, True)
+
+
+@dataclass
+class RegionNet:
+    """A region's ribs and faces.
+
+    Attributes:
+        ribs: (K, 2) float, chain parameters (s_A, s_B) of each rib's ends.
+        rows: (K, 4, 3) float, mm, rib control curves from side B to side A.
+        kinds: (K,) str: "end", "skeleton" or "junction".
+        faces: K - 1 patches.
+        correspondence: (m, 2) float, DTW correspondence (s_A, s_B) samples.
+    """
+
+    name: str
+    ribs: np.ndarray
+    rows: np.ndarray
+    kinds: list[str]
+    faces: list[FacePatch]
+    correspondence: np.ndarray
+
+
+# --------------------------------------------------------------------------- correspondences
+
+
+def skeleton_ribs(samples: BoundarySamples, pairs: list[OptimalPair]) -> np.ndarray:
+    """(k, 2) chain parameters (s_A, s_B) of the optimal pairs that join side A to side B."""
+    out = []
+    for p in pairs:
+        sides = samples.side[[p.i, p.j]]
+        if set(sides.tolist()) == {SIDE_A, SIDE_B}:
+            a, b = (p.i, p.j) if sides[0] == SIDE_A else (p.j, p.i)
+            out.append((samples.s[a], samples.s[b]))
+    return np.array(out).reshape(-1, 2)
+
+
+def _monotone(ribs: np.ndarray, na: int, nb: int, eps: float = 1e-6) -> np.ndarray:
+    """Ribs sorted along side A, strictly inside both sides, crossing-free (greedy)."""
+    ribs = ribs[(ribs[:, 0] > eps) & (ribs[:, 0] < na - eps) & (ribs[:, 1] > eps) & (ribs[:, 1] < nb - eps)]
+    ribs = ribs[np.argsort(ribs[:, 0], kind="stable")]
+    out, last = [], (0.0, 0.0)
+    for a, b in ribs:
+        if a > last[0] + eps and b > last[1] + eps:
+            out.append((a, b))
+            last = (a, b)
+    return np.array(out).reshape(-1, 2)
+
+
+def dtw_correspondence(outline: RegionOutline, samples: BoundarySamples, ribs: np.ndarray) -> np.ndarray:
+    """Refine the correspondence between the two sides by DTW between consecutive ribs.
+
+    Between ribs k and k+1 the boundary samples of side A and of side B (3D points, mm, with the
+    ribs' own end points) are aligned by dynamic time warping on point-to-point distance
+    (``dtaidistance.dtw_ndim``, C implementation).
+
+    Args:
+        ribs: (k, 2) monotone inner ribs (s_A, s_B); the begin and end curves are added here.
+    Returns:
+        (m, 2) float, (s_A, s_B) pairs of the warping paths, sorted, first (0, 0), last (n_A, n_B).
+    """
+    from dtaidistance import dtw_ndim
+
+    na, nb = outline.side_a.n, outline.side_b.n
+    sa_t, la_t = outline.side_a.arc_table()
+    sb_t, lb_t = outline.side_b.arc_table()
+    arc_a = lambda s: np.interp(s, sa_t, la_t)  # noqa: E731
+    arc_b = lambda s: np.interp(s, sb_t, lb_t)  # noqa: E731
+    s_of_a = lambda L: np.interp(L, la_t, sa_t)  # noqa: E731
+    s_of_b = lambda L: np.interp(L, lb_t, sb_t)  # noqa: E731
+    bounds = np.vstack([[0.0, 0.0], ribs, [na, nb]])
+    sa_all = np.unique(np.r_[samples.s[samples.side == SIDE_A], np.arange(na + 1)])
+    sb_all = np.unique(np.r_[samples.s[samples.side == SIDE_B], np.arange(nb + 1)])
+    out = []
+    for (a0, b0), (a1, b1) in zip(bounds[:-1], bounds[1:]):
+        sa = np.unique(np.r_[a0, sa_all[(sa_all > a0) & (sa_all < a1)], a1])
+        sb = np.unique(np.r_[b0, sb_all[(sb_all > b0) & (sb_all < b1)], b1])
+        pa, pb = outline.side_a.points(sa), outline.side_b.points(sb)
+        path = np.array(dtw_ndim.warping_path(pa, pb, use_c=True))
+        a, b = sa[path[:, 0]], sb[path[:, 1]]
+        # blend towards the arc-length-proportional match: strictly monotone (no many-to-one)
+        la0, la1, lb0, lb1 = arc_a(a0), arc_a(a1), arc_b(b0), arc_b(b1)
+        a_lin = s_of_a(la0 + (arc_b(b) - lb0) / max(lb1 - lb0, 1e-12) * (la1 - la0))
+        b_lin = s_of_b(lb0 + (arc_a(a) - la0) / max(la1 - la0, 1e-12) * (lb1 - lb0))
+        out += list(zip((1 - DTW_BLEND) * a + DTW_BLEND * a_lin, (1 - DTW_BLEND) * b + DTW_BLEND * b_lin))
+    return np.array(sorted(set(out)))
+
+
+class _MonotoneCurve:
+    """The correspondence as one monotone polyline in (s_A, s_B): partners of A points and of
+    B points read off the same curve never cross each other."""
+
+    def __init__(self, corr: np.ndarray):
+        pts = corr[np.lexsort((corr[:, 1], corr[:, 0]))]
+        pts[:, 1] = np.maximum.accumulate(pts[:, 1])
+        self.pts = pts
+        self.w = np.r_[0.0, np.cumsum(np.abs(np.diff(pts, axis=0)).sum(axis=1))]
+
+    def _at(self, axis: int, value: float) -> np.ndarray:
+        x = self.pts[:, axis]
+        lo, hi = np.searchsorted(x, value, "left"), np.searchsorted(x, value, "right")
+        if hi > lo:  # the path runs along x = value: take the middle of that run
+            w = self.w[lo:hi].mean()
+        else:
+            w = float(np.interp(value, x, self.w))
+        return np.array([np.interp(w, self.w, self.pts[:, 0]), np.interp(w, self.w, self.pts[:, 1])])
+
+    def partner_of_a(self, s_a: float) -> float:
+        return float(self._at(0, s_a)[1])
+
+    def partner_of_b(self, s_b: float) -> float:
+        return float(self._at(1, s_b)[0])
+
+
+def _strictly_ordered(r: np.ndarray, fixed: np.ndarray, eps: float = 1e-6) -> bool:
+    """True when rib r crosses none of ``fixed`` and shares no end with them."""
+    before = (r[0] < fixed[:, 0] - eps) & (r[1] < fixed[:, 1] - eps)
+    after = (r[0] > fixed[:, 0] + eps) & (r[1] > fixed[:, 1] + eps)
+    return bool(np.all(before | after))
+
+
+def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.ndarray,
+             min_gap_mm: float) -> tuple[np.ndarray, list[str]]:
+    """All ribs of the net: ends, junction ribs (partners from the correspondence), skeleton ribs.
+
+    A junction rib whose partner falls within ``min_gap_mm`` (arc length) of a junction of the
+    other side joins the two junctions; a skeleton rib closer than ``min_gap_mm`` to another rib
+    on either side, or crossing a junction rib, is dropped (junction ribs are needed: a face
+    edge must lie on one cubic).
+
+    Returns:
+        (K, 2) (s_A, s_B) from (0, 0) to (n_A, n_B), and each rib's kind.
+    """
+    na, nb = outline.side_a.n, outline.side_b.n
+    sa_t, la_t = outline.side_a.arc_table()
+    sb_t, lb_t = outline.side_b.arc_table()
+    arc_a = lambda s: np.interp(s, sa_t, la_t)  # noqa: E731
+    arc_b = lambda s: np.interp(s, sb_t, lb_t)  # noqa: E731
+    curve = _MonotoneCurve(correspondence)
+
+    on_a: dict[int, float] = {}  # A junction -> partner on B
+    free_b: list[tuple[float, int]] = []
+    used_b: set[int] = set()
+    for j in range(1, na):
+        b = curve.partner_of_a(j)
+        if not 0 < b < nb:
+            continue
+        near = [k for k in range(1, nb) if abs(arc_b(k) - arc_b(b)) < min_gap_mm]
+        if near:
+            k = min(near, key=lambda k: abs(arc_b(k) - arc_b(b)))
+            used_b.add(k)
+            b = float(k)
+        on_a[j] = b
+    for k in range(1, nb):
+        if k in used_b:
+            continue
+        a = curve.partner_of_b(k)
+        if not 0 < a < na:
+            continue
+        near = [j for j in range(1, na) if abs(arc_a(j) - arc_a(a)) < min_gap_mm]
+        if near:
+            on_a[min(near, key=lambda j: abs(arc_a(j) - arc_a(a)))] = float(k)
+        else:
+            free_b.append((a, float(k)))
+    junctions = [(float(j), b) for j, b in on_a.items()] + free_b
+    junc = np.unique(np.array(junctions).reshape(-1, 2), axis=0)
+    junc = junc[np.lexsort((junc[:, 1], junc[:, 0]))]
+    if len(junc) and (np.any(np.diff(junc[:, 0]) <= 0) or np.any(np.diff(junc[:, 1]) <= 0)):
+        raise AssertionError(f"{outline.name}: junction ribs cross or share an end: {junc.tolist()}")
+
+    fixed = np.vstack([[0.0, 0.0], junc, [na, nb]])
+    keep = []
+    for a, b in skeleton:
+        da = np.abs(arc_a(fixed[:, 0]) - arc_a(a)).min()
+        db = np.abs(arc_b(fixed[:, 1]) - arc_b(b)).min()
+        if da >= min_gap_mm and db >= min_gap_mm and _strictly_ordered(np.array([a, b]), fixed):
+            keep.append((a, b))
+    skel = _monotone(np.array(keep).reshape(-1, 2), na, nb)
+    inner = np.vstack([junc, skel])
+    kinds = ["junction"] * len(junc) + ["skeleton"] * len(skel)
+    order = np.argsort(inner[:, 0], kind="stable")
+    ribs = np.vstack([[0.0, 0.0], inner[order], [na, nb]])
+    return ribs, ["end"] + [kinds[i] for i in order] + ["end"]
+
+
+# --------------------------------------------------------------------------- rib control curves
+
+
+def _side_tangent(chain: Chain, s: float) -> np.ndarray:
+    """Unit tangent of a chain at s, direction of increasing s (mean of both sides at a junction)."""
+    i = min(int(s), chain.n - 1)
+    t = s - i
+    d = bezier_derivs(chain.poles[i], [t])[0]
+    d = d / np.linalg.norm(d)
+    if t == 0 and i > 0:
+        e = bezier_derivs(chain.poles[i - 1], [1.0])[0]
+        d = d + e / np.linalg.norm(e)
+    elif s >= chain.n and chain.n > 0:
+        d = bezier_derivs(chain.poles[-1], [1.0])[0]
+    return d / np.linalg.norm(d)
+
+
+def _rib_frame(p0: np.ndarray, p3: np.ndarray, along: np.ndarray, outward: np.ndarray):
+    """(length, (3, 3) rows x̂ chord, ŵ out of the surface, ŷ = ŵ × x̂) of a rib."""
+    chord = p3 - p0
+    length = float(np.linalg.norm(chord))
+    x = chord / length
+    w = np.cross(x, along)
+    if np.linalg.norm(w) < 1e-9:
+        w = outward - (outward @ x) * x
+    w /= np.linalg.norm(w)
+    if w @ outward < 0:
+        w = -w
+    return length, np.array([x, w, np.cross(w, x)])
+
+
+def rib_rows(outline: RegionOutline, ribs: np.ndarray) -> np.ndarray:
+    """Control curves of all ribs (paper V): (K, 4, 3) float, mm, from side B to side A.
+
+    Rib 0 and rib K-1 are the begin and end curves themselves.
+    """
+    a_pts = outline.side_a.points(ribs[:, 0])
+    b_pts = outline.side_b.points(ribs[:, 1])
+    sa_t, la_t = outline.side_a.arc_table()
+    sb_t, lb_t = outline.side_b.arc_table()
+    ratio_a = np.interp(ribs[:, 0], sa_t, la_t) / la_t[-1]  # along the P3 side
+    ratio_b = np.interp(ribs[:, 1], sb_t, lb_t) / lb_t[-1]  # along the P0 side
+
+    def along(k):
+        return _side_tangent(outline.side_a, ribs[k, 0]) + _side_tangent(outline.side_b, ribs[k, 1])
+
+    def normalised(poles, k):
+        length, frame = _rib_frame(poles[0], poles[3], along(k), outline.outward)
+        return (poles[1:3] - poles[0]) @ frame.T / length
+
+    begin_n = normalised(outline.begin, 0)
+    end_n = normalised(outline.end, len(ribs) - 1)
+    rows = np.empty((len(ribs), 4, 3))
+    for k in range(len(ribs)):
+        p0, p3 = b_pts[k], a_pts[k]
+        length, frame = _rib_frame(p0, p3, along(k), outline.outward)
+        n1 = (1 - ratio_b[k]) * begin_n[0] + ratio_b[k] * end_n[0]
+        n2 = (1 - ratio_a[k]) * begin_n[1] + ratio_a[k] * end_n[1]
+        rows[k] = [p0, p0 + length * n1 @ frame, p0 + length * n2 @ frame, p3]
+    rows[0], rows[-1] = outline.begin, outline.end
+    return rows
+
+
+# --------------------------------------------------------------------------- patches
+
+
+def _sub_arc(chain: Chain, s0: float, s1: float) -> tuple[np.ndarray, int, float, float]:
+    """Exact sub-arc of a chain between s0 < s1 lying on one piece: (poles, piece, t0, t1)."""
+    i = min(int(np.floor(s0 + 1e-12)), chain.n - 1)
+    t0, t1 = s0 - i, s1 - i
+    if t1 > 1 + 1e-9:
+        raise AssertionError(f"sub-arc [{s0}, {s1}] spans a junction")
+    t0, t1 = max(t0, 0.0), min(t1, 1.0)
+    return split_bezier(chain.poles[i], t0, t1), i, t0, t1
+
+
+def _cross(sigma0: float, sigma3: float, e: np.ndarray) -> np.ndarray:
+    """Bezier coefficients (4, 3) of the cubic σ(u)·E(u): σ linear (σ0, σ3), E quadratic e (3, 3)."""
+    return np.array([sigma0 * e[0], (2 * sigma0 * e[1] + sigma3 * e[0]) / 3,
+                     (sigma0 * e[2] + 2 * sigma3 * e[1]) / 3, sigma3 * e[2]])
+
+
+def _side_ref(chain: Chain, piece: int, t0: float, t1: float) -> SideRef:
+    c, rev = chain.curves[piece], chain.reversed[piece]
+    return SideRef(c, 1 - t0, 1 - t1) if rev else SideRef(c, t0, t1)
+
+
+def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray) -> list[FacePatch]:
+    """Bicubic Bezier patches between consecutive ribs (G1 across inner ribs; see module doc)."""
+    K = len(ribs)
+    mids = np.array([bezier_points(r, [0.5])[0] for r in rows])
+    fields = []
+    for k in range(K):
+        e0 = _side_tangent(outline.side_b, ribs[k, 1])
+        e2 = _side_tangent(outline.side_a, ribs[k, 0])
+        m = mids[min(k + 1, K - 1)] - mids[max(k - 1, 0)]
+        m /= np.linalg.norm(m)
+        fields.append(np.array([e0, 2 * m - (e0 + e2) / 2, e2]))
+    faces = []
+    for k in range(K - 1):
+        sub_b, ib, tb0, tb1 = _sub_arc(outline.side_b, ribs[k, 1], ribs[k + 1, 1])
+        sub_a, ia, ta0, ta1 = _sub_arc(outline.side_a, ribs[k, 0], ribs[k + 1, 0])
+        plus = _cross(np.linalg.norm(3 * (sub_b[1] - sub_b[0])), np.linalg.norm(3 * (sub_a[1] - sub_a[0])), fields[k])
+        minus = _cross(np.linalg.norm(3 * (sub_b[3] - sub_b[2])), np.linalg.norm(3 * (sub_a[3] - sub_a[2])),
+                       fields[k + 1])
+        grid = np.array([rows[k], rows[k] + plus / 3, rows[k + 1] - minus / 3, rows[k + 1]])  # [v, u]
+        grid[:, 0] = sub_b
+        grid[:, 3] = sub_a
+        net = grid.transpose(1, 0, 2).copy()  # [u, v]
+        sides = {
+            "u0": _side_ref(outline.side_b, ib, tb0, tb1),
+            "u1": _side_ref(outline.side_a, ia, ta0, ta1),
+            "v0": None, "v1": None,
+        }
+        if k == 0:
+            c, rev = outline.begin_curve
+            sides["v0"] = SideRef(c, 1.0, 0.0) if rev else SideRef(c, 0.0, 1.0)
+        if k == K - 2:
+            c, rev = outline.end_curve
+            sides["v1"] = SideRef(c, 1.0, 0.0) if rev else SideRef(c, 0.0, 1.0)
+        faces.append(FacePatch(outline.name, k, net, sides))
+    # make S_u x S_v point outwards (u reversed if needed)
+    mid = faces[len(faces) // 2].net
+    n = np.cross(mid[3, 1] + mid[3, 2] - mid[0, 1] - mid[0, 2], mid[1, 3] + mid[2, 3] - mid[1, 0] - mid[2, 0])
+    if n @ outline.outward < 0:
+        for f in faces:
+            f.net = f.net[::-1].copy()
+            s = f.sides
+            flip = lambda r: None if r is None else SideRef(r.curve, r.t1, r.t0, r.mirror)  # noqa: E731
+            f.sides = {"v0": flip(s["v0"]), "v1": flip(s["v1"]), "u0": s["u1"], "u1": s["u0"]}
+    return faces
+
+
+def region_net(outline: RegionOutline, samples: BoundarySamples, pairs: list[OptimalPair],
+               min_gap_mm: float) -> RegionNet:
+    """Ribs, control curves and faces of one region from its skeleton's optimal pairs."""
+    na, nb = outline.side_a.n, outline.side_b.n
+    skel = _monotone(skeleton_ribs(samples, pairs), na, nb)
+    corr = dtw_correspondence(outline, samples, skel)
+    ribs, kinds = net_ribs(outline, skel, corr, min_gap_mm)
+    rows = rib_rows(outline, ribs)
+    return RegionNet(outline.name, ribs, rows, kinds, patches(outline, ribs, rows), corr)

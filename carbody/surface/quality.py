@@ -1,0 +1,121 @@
+"""Surface quality figures, measured on the Bezier nets themselves (numpy, no OCCT).
+
+* **G0 gap**: distance between the two faces' points at the same place of a shared edge.
+* **G1 angle**: angle between the two faces' normals there (degrees).
+* **scaled Jacobian** of a quad net: at each corner of each control quad, the cross product of
+  its two edges over the product of their lengths, signed by the face normal; 1 for a square,
+  0 for a degenerate quad, negative for a fold.
+
+Shared edges are found from the faces' side references: inside a region, consecutive faces
+share a rib; across regions (and the symmetry plane), faces whose sides lie on the same
+wireframe curve overlap on a common curve-parameter interval.
+"""
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+from carbody.surface.control_net import FacePatch
+
+_SAMPLES = 11
+
+
+def _bern(t: np.ndarray) -> np.ndarray:
+    t = np.asarray(t, float)[:, None]
+    return np.hstack([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3])
+
+
+def _dbern(t: np.ndarray) -> np.ndarray:
+    t = np.asarray(t, float)[:, None]
+    return np.hstack([-3 * (1 - t) ** 2, 3 * (1 - t) ** 2 - 6 * t * (1 - t), 6 * t * (1 - t) - 3 * t**2, 3 * t**2])
+
+
+def surface_points(net: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Points S(u_k, v_k) of a bicubic net (4, 4, 3); u, v (m,) -> (m, 3)."""
+    return np.einsum("mi,mj,ijd->md", _bern(u), _bern(v), net)
+
+
+def surface_normals(net: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Unit normals S_u x S_v (m, 3) at (u_k, v_k)."""
+    su = np.einsum("mi,mj,ijd->md", _dbern(u), _bern(v), net)
+    sv = np.einsum("mi,mj,ijd->md", _bern(u), _dbern(v), net)
+    n = np.cross(su, sv)
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def _side_uv(side: str, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    one, zero = np.ones_like(p), np.zeros_like(p)
+    return {"v0": (p, zero), "v1": (p, one), "u0": (zero, p), "u1": (one, p)}[side]
+
+
+def _angle(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip(np.abs((n1 * n2).sum(axis=1)), -1, 1)))
+
+
+def scaled_jacobian(net: np.ndarray) -> float:
+    """Smallest scaled Jacobian over the corners of the 3 x 3 control quads of a net (4, 4, 3)."""
+    n_ref = np.cross(net[3, 0] + net[3, 3] - net[0, 0] - net[0, 3], net[0, 3] + net[3, 3] - net[0, 0] - net[3, 0])
+    n_ref /= np.linalg.norm(n_ref)
+    q00, q10, q01, q11 = net[:-1, :-1], net[1:, :-1], net[:-1, 1:], net[1:, 1:]
+    corners = [(q00, q10, q01), (q10, q11, q00), (q11, q01, q10), (q01, q00, q11)]
+    worst = np.inf
+    for c, a, b in corners:  # edges from corner c to a and to b, counter-clockwise
+        ea, eb = a - c, b - c
+        cr = np.cross(ea, eb) @ n_ref
+        la, lb = np.linalg.norm(ea, axis=-1), np.linalg.norm(eb, axis=-1)
+        sj = cr / np.maximum(la * lb, 1e-300)
+        sign = 1.0 if c is q00 or c is q11 else 1.0
+        worst = min(worst, float((sign * sj).min()))
+    return worst
+
+
+def inner_g1(faces: list[FacePatch]) -> tuple[float, float]:
+    """(max G0 gap mm, max G1 angle deg) across the ribs between consecutive faces of a region."""
+    g0, g1 = 0.0, 0.0
+    p = np.linspace(0, 1, _SAMPLES)
+    for f, g in zip(faces[:-1], faces[1:]):
+        uf, vf = _side_uv("v1", p)
+        ug, vg = _side_uv("v0", p)
+        g0 = max(g0, float(np.linalg.norm(surface_points(f.net, uf, vf) - surface_points(g.net, ug, vg), axis=1).max()))
+        g1 = max(g1, float(_angle(surface_normals(f.net, uf, vf), surface_normals(g.net, ug, vg)).max()))
+    return g0, g1
+
+
+def seam_quality(faces: list[FacePatch]) -> dict[tuple[str, str], tuple[float, float]]:
+    """{(region, region): (max G0 gap mm, max G1 angle deg)} along shared wireframe curves."""
+    on_curve: dict[tuple[int, bool], list[tuple[FacePatch, str]]] = defaultdict(list)
+    for f in faces:
+        for side, ref in f.sides.items():
+            if ref is not None:
+                on_curve[ref.key].append((f, side))
+    out: dict[tuple[str, str], tuple[float, float]] = {}
+    for items in on_curve.values():
+        for a in range(len(items)):
+            for b in range(a + 1, len(items)):
+                (f, sf), (g, sg) = items[a], items[b]
+                if f.region == g.region and f.mirror == g.mirror:
+                    continue
+                rf, rg = f.sides[sf], g.sides[sg]
+                lo = max(min(rf.t0, rf.t1), min(rg.t0, rg.t1))
+                hi = min(max(rf.t0, rf.t1), max(rg.t0, rg.t1))
+                if hi - lo <= 1e-9:
+                    continue
+                t = np.linspace(lo, hi, _SAMPLES)
+                pf = (t - rf.t0) / (rf.t1 - rf.t0)
+                pg = (t - rg.t0) / (rg.t1 - rg.t0)
+                uf, vf = _side_uv(sf, pf)
+                ug, vg = _side_uv(sg, pg)
+                gap = float(np.linalg.norm(surface_points(f.net, uf, vf) - surface_points(g.net, ug, vg), axis=1).max())
+                ang = float(_angle(surface_normals(f.net, uf, vf), surface_normals(g.net, ug, vg)).max())
+                key = tuple(sorted((f.region, g.region + ("_right" if g.mirror != f.mirror else ""))))
+                old = out.get(key, (0.0, 0.0))
+                out[key] = (max(old[0], gap), max(old[1], ang))
+    return out
+
+
+def region_report(faces: list[FacePatch]) -> dict[str, float]:
+    """Per-region figures of one region's (left-half) faces."""
+    g0, g1 = inner_g1(faces)
+    return {"faces": len(faces), "inner_g0_mm": g0, "inner_g1_deg": g1,
+            "min_scaled_jacobian": min(scaled_jacobian(f.net) for f in faces)}
