@@ -199,3 +199,26 @@ def face_side_splits(face: FacePatch, splits: dict[tuple[int, bool], np.ndarray]
         p = (inner - ref.t0) / (ref.t1 - ref.t0)
         out[side] = np.r_[0.0, np.sort(p), 1.0]
     return out
+
+
+def region_colour(name: str, topology: Topology | None = None) -> tuple[float, float, float]:
+    """sRGB colour (0..1) of a region: hues evenly spread over the topology's regions."""
+    import colorsys
+
+    topo = topology or load_topology()
+    names = [r.name for r in topo.regions]
+    k = names.index(name)
+    return colorsys.hsv_to_rgb((k * 0.618034) % 1.0, 0.55, 0.85)
+
+
+def face_names(body: Body) -> list[str]:
+    """STEP face names: ``REGION_K`` on the left half, ``REGION_right_K`` on the right."""
+    return [f"{p.region}{'_right' if p.mirror else ''}_{p.index}" for p in body.patches]
+
+
+def write_body(path, body: Body) -> "Path":
+    """Write a body as AP214 STEP (mm): one shell, faces named and coloured by region."""
+    from carbody.occ.step_body import write_body_step
+
+    faces = [(n, region_colour(p.region), f) for n, p, (_, f) in zip(face_names(body), body.patches, body.faces)]
+    return write_body_step(path, body.shape, faces, body.name)
