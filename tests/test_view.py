@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from carbody.errors import ViewError
+from carbody.errors import ImageError, ViewError
 from carbody.view.labels import (CLASS_ANGLES_DEG, MIRROR_PERMUTATION, N_CLASSES, angular_difference,
                                  class_of, continuous_estimate, mirror_class)
 from tests.conftest import run_cli
@@ -100,15 +100,15 @@ def test_read_image_refuses_bad_files(tmp_path):
 
     (tmp_path / "empty.png").write_bytes(b"")
     (tmp_path / "text.png").write_text("not a picture at all")
-    with pytest.raises(ViewError, match="empty"):
+    with pytest.raises(ImageError, match="empty"):
         read_image(tmp_path / "empty.png")
-    with pytest.raises(ViewError, match="not an image"):
+    with pytest.raises(ImageError, match="not an image"):
         read_image(tmp_path / "text.png")
-    with pytest.raises(ViewError, match="no such"):
+    with pytest.raises(ImageError, match="no such"):
         read_image(tmp_path / "missing.png")
-    with pytest.raises(ViewError, match="too small"):
+    with pytest.raises(ImageError, match="too small"):
         read_image(np.zeros((8, 300, 3), dtype=np.uint8))
-    with pytest.raises(ViewError, match="empty"):
+    with pytest.raises(ImageError, match="empty"):
         read_image(np.zeros((0, 0, 3), dtype=np.uint8))
 
 

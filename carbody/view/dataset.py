@@ -8,7 +8,7 @@ and rendered many times (:class:`carbody.render.Scene`), each image with its own
 - view: one of the 24 classes (:mod:`carbody.view.labels`); left-side classes (0°–180°) are
   rendered, right-side classes are the mirror image (rendered at 360° − θ and flipped), as the
   paper's 13 classes plus their mirror; θ jitters by ±``angle_jitter_deg`` inside its class;
-- elevation φ uniform in 0°–30°, a small roll, orthographic or perspective camera at 1.3–5
+- elevation φ uniform in 0°–30°, a small roll, orthographic or perspective camera at 1.6–6
   car lengths, the car filling 60–100 % of the frame and shifted off centre (crop);
 - paint from a palette of real car colours with jitter, glass tint, key light direction and
   strength, ambient, specular;
@@ -31,7 +31,7 @@ from typing import Callable
 
 import numpy as np
 
-from carbody.errors import ViewError
+from carbody.errors import CarbodyError, ViewError
 from carbody.view.labels import CLASS_ANGLES_DEG, N_CLASSES
 
 #: Side of the stored images, pixels (the network resizes to 64).
@@ -154,13 +154,16 @@ def body_meshes(spec: BodySpec, surface_body: Callable | None = None):
     from carbody.render import tessellate
     from carbody.wireframe import Wireframe
 
+    wireframe = Wireframe(spec.body_id, spec.control_points_mm)
     if surface_body is None:
         try:
-            from carbody.surface import build_body as surface_body
+            from carbody.surface import build_body
         except ImportError:
             raise ViewError("the data set needs surfaced bodies, and carbody.surface is not "
                             "available in this installation") from None
-    body = surface_body(Wireframe(spec.body_id, spec.control_points_mm))
+        body = build_body(wireframe, check=False)
+    else:
+        body = surface_body(wireframe)
     return tessellate(body) + wheel_meshes(spec.control_points_mm, spec.tyre_radius_mm)
 
 
@@ -234,7 +237,7 @@ def sample_shot(rng: np.random.Generator, class_index: int, vary: Variation):
     if vary.elevation:
         elevation = rng.uniform(0.0, 30.0)
         roll = rng.normal(0.0, 2.5)
-        distance = 0.0 if rng.random() < 0.25 else rng.uniform(1.3, 5.0)
+        distance = 0.0 if rng.random() < 0.25 else rng.uniform(1.6, 6.0)
         fill = rng.uniform(0.6, 0.95) if rng.random() < 0.85 else rng.uniform(0.95, 1.15)
         offset = tuple(rng.uniform(-0.08, 0.08, 2))
     else:
@@ -337,10 +340,20 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
     (out / "images").mkdir(parents=True, exist_ok=True)
     manifest_rows = []
     bar = tqdm(total=count, desc="render-dataset", unit="img", disable=not progress)
-    n_done = 0
+    n_done, carry, skipped = 0, 0, []
     for b, (spec, n_img) in enumerate(zip(bodies, per_body)):
         bar.set_postfix_str(spec.body_id)
-        scene = Scene(body_meshes(spec, surface_body), size=(IMAGE_SIZE, IMAGE_SIZE), antialias=2)
+        n_img += carry
+        try:
+            meshes = body_meshes(spec, surface_body)
+        except CarbodyError as exc:   # a body our surfacing refuses: its images go to the next body
+            if b == len(bodies) - 1:
+                raise ViewError(f"the last body {spec.body_id} cannot be surfaced: {exc}") from None
+            skipped.append({"body": spec.body_id, "reason": str(exc)})
+            carry = n_img
+            continue
+        carry = 0
+        scene = Scene(meshes, size=(IMAGE_SIZE, IMAGE_SIZE), antialias=2)
         car_length = float(np.ptp(spec.control_points_mm[:, 1]))
         brng = np.random.default_rng([seed, 3, b])
         classes = (np.arange(n_img) + brng.integers(N_CLASSES)) % N_CLASSES
@@ -370,7 +383,8 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
         writer.writerows(manifest_rows)
     (out / "dataset.json").write_text(json.dumps({
         "count": n_done, "seed": seed, "image_size": IMAGE_SIZE, "classes_deg": CLASS_ANGLES_DEG.tolist(),
-        "bodies": [b.body_id for b in bodies], "validation_templates": sorted(val_templates),
+        "bodies": [b.body_id for b in bodies if b.body_id not in {k["body"] for k in skipped}],
+        "skipped_bodies": skipped, "validation_templates": sorted(val_templates),
         "variation": asdict(vary), "bodies_per_template": bodies_per_template}, indent=1))
     tmp.replace(out / "manifest.csv")
     return out / "manifest.csv"

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from carbody.errors import ViewError
+from carbody.errors import ImageError, ViewError
 from carbody.view.labels import CLASS_ANGLES_DEG, MIRROR_PERMUTATION, N_CLASSES, continuous_estimate
 
 #: The weights shipped with the package.
@@ -67,20 +67,20 @@ def read_image(image) -> np.ndarray:
     """(h, w, 3) uint8 RGB from a path or an array (gray, gray+alpha, RGB, RGBA; 8 or 16 bit).
 
     Raises:
-        ViewError: missing or empty file, not an image, empty or tiny picture.
+        ImageError: missing or empty file, not an image, empty or tiny picture.
     """
     import cv2
 
     if isinstance(image, (str, Path)):
         path = Path(image)
         if not path.is_file():
-            raise ViewError(f"{path}: no such image file")
+            raise ImageError(f"{path}: no such image file")
         data = np.fromfile(path, dtype=np.uint8)
         if data.size == 0:
-            raise ViewError(f"{path}: the file is empty")
+            raise ImageError(f"{path}: the file is empty")
         arr = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
         if arr is None:
-            raise ViewError(f"{path}: not an image (cannot decode it)")
+            raise ImageError(f"{path}: not an image (cannot decode it)")
         if arr.ndim == 3 and arr.shape[2] >= 3:    # OpenCV decodes to BGR(A)
             arr = cv2.cvtColor(arr, cv2.COLOR_BGRA2RGBA if arr.shape[2] == 4 else cv2.COLOR_BGR2RGB)
         name = str(path)
@@ -88,19 +88,19 @@ def read_image(image) -> np.ndarray:
         arr = np.asarray(image)
         name = "image"
     if arr.size == 0 or arr.ndim not in (2, 3):
-        raise ViewError(f"{name}: empty or not a picture (shape {arr.shape})")
+        raise ImageError(f"{name}: empty or not a picture (shape {arr.shape})")
     if arr.ndim == 3 and arr.shape[2] not in (1, 2, 3, 4):
-        raise ViewError(f"{name}: {arr.shape[2]} channels (need 1, 2, 3 or 4)")
+        raise ImageError(f"{name}: {arr.shape[2]} channels (need 1, 2, 3 or 4)")
     h, w = arr.shape[:2]
     if min(h, w) < MIN_IMAGE_SIDE:
-        raise ViewError(f"{name}: {w}x{h} px is too small (need at least {MIN_IMAGE_SIDE} px a side)")
+        raise ImageError(f"{name}: {w}x{h} px is too small (need at least {MIN_IMAGE_SIDE} px a side)")
     if arr.dtype == np.uint16:
         arr = (arr / 257.0).round().astype(np.uint8)
     elif arr.dtype == bool:
         arr = arr.astype(np.uint8) * 255
     elif np.issubdtype(arr.dtype, np.floating):
         if not np.all(np.isfinite(arr)):
-            raise ViewError(f"{name}: holds NaN or infinite values")
+            raise ImageError(f"{name}: holds NaN or infinite values")
         arr = np.clip(arr * (255.0 if arr.max() <= 1.0 else 1.0), 0, 255).round().astype(np.uint8)
     elif arr.dtype != np.uint8:
         arr = np.clip(arr, 0, 255).astype(np.uint8)
@@ -169,7 +169,8 @@ def predict_view(image, weights: str | Path | None = None, mirror_average: bool 
     """The view angle of one car picture (path or array); see :class:`ViewPrediction`.
 
     Raises:
-        ViewError: unreadable, empty or tiny picture; missing or bad weights.
+        ImageError: unreadable, empty or tiny picture.
+        ViewError: missing or bad weights.
     """
     p = predict_probabilities([image], weights, mirror_average)[0]
     k = int(np.argmax(p))
