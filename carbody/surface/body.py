@@ -151,7 +151,7 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
 
     report: dict[str, Any] = {"regions": {}, "seams": {}}
     for n, s in zip(nets, sk):
-        r = region_report(n.faces)
+        r = region_report(n.faces, n.side_turn_deg)
         r["pairs"] = len(s.pairs)
         r["ribs"] = len(n.ribs)
         report["regions"][n.name] = r

@@ -101,6 +101,8 @@ class RegionNet:
         kinds: (K,) str: "end", "skeleton" or "junction".
         faces: K - 1 patches.
         correspondence: (m, 2) float, DTW correspondence (s_A, s_B) samples.
+        side_turn_deg: (K,) float, how sharply the sides turn at each rib's ends (degrees; 0
+            inside a cubic): no patch layout can be G1 across a rib ending at a side corner.
     """
 
     name: str
@@ -109,6 +111,7 @@ class RegionNet:
     kinds: list[str]
     faces: list[FacePatch]
     correspondence: np.ndarray
+    side_turn_deg: np.ndarray
 
 
 # --------------------------------------------------------------------------- correspondences
@@ -414,4 +417,16 @@ def region_net(outline: RegionOutline, samples: BoundarySamples, pairs: list[Opt
     corr = dtw_correspondence(outline, samples, skel)
     ribs, kinds = net_ribs(outline, skel, corr, min_gap_mm)
     rows = rib_rows(outline, ribs)
-    return RegionNet(outline.name, ribs, rows, kinds, patches(outline, ribs, rows), corr)
+    turn = np.array([max(side_turn_deg(outline.side_a, a), side_turn_deg(outline.side_b, b)) for a, b in ribs])
+    return RegionNet(outline.name, ribs, rows, kinds, patches(outline, ribs, rows), corr, turn)
+
+
+def side_turn_deg(chain: Chain, s: float) -> float:
+    """Angle (degrees) between the incoming and outgoing tangents of a chain at parameter s."""
+    j = int(round(s))
+    if abs(s - j) > 1e-9 or j <= 0 or j >= chain.n:
+        return 0.0
+    a = bezier_derivs(chain.poles[j - 1], [1.0])[0]
+    b = bezier_derivs(chain.poles[j], [0.0])[0]
+    c = a @ b / (np.linalg.norm(a) * np.linalg.norm(b))
+    return float(np.degrees(np.arccos(np.clip(c, -1, 1))))

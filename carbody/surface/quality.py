@@ -65,21 +65,21 @@ def scaled_jacobian(net: np.ndarray) -> float:
         cr = np.cross(ea, eb) @ n_ref
         la, lb = np.linalg.norm(ea, axis=-1), np.linalg.norm(eb, axis=-1)
         sj = cr / np.maximum(la * lb, 1e-300)
-        sign = 1.0 if c is q00 or c is q11 else 1.0
-        worst = min(worst, float((sign * sj).min()))
+        worst = min(worst, float(sj.min()))
     return worst
 
 
-def inner_g1(faces: list[FacePatch]) -> tuple[float, float]:
-    """(max G0 gap mm, max G1 angle deg) across the ribs between consecutive faces of a region."""
-    g0, g1 = 0.0, 0.0
+def inner_seams(faces: list[FacePatch]) -> np.ndarray:
+    """(len(faces) - 1, 2): max G0 gap (mm) and max G1 angle (deg) across each inner rib."""
+    out = []
     p = np.linspace(0, 1, _SAMPLES)
     for f, g in zip(faces[:-1], faces[1:]):
         uf, vf = _side_uv("v1", p)
         ug, vg = _side_uv("v0", p)
-        g0 = max(g0, float(np.linalg.norm(surface_points(f.net, uf, vf) - surface_points(g.net, ug, vg), axis=1).max()))
-        g1 = max(g1, float(_angle(surface_normals(f.net, uf, vf), surface_normals(g.net, ug, vg)).max()))
-    return g0, g1
+        gap = np.linalg.norm(surface_points(f.net, uf, vf) - surface_points(g.net, ug, vg), axis=1).max()
+        ang = _angle(surface_normals(f.net, uf, vf), surface_normals(g.net, ug, vg)).max()
+        out.append((gap, ang))
+    return np.array(out).reshape(-1, 2)
 
 
 def seam_quality(faces: list[FacePatch]) -> dict[tuple[str, str], tuple[float, float]]:
@@ -114,8 +114,21 @@ def seam_quality(faces: list[FacePatch]) -> dict[tuple[str, str], tuple[float, f
     return out
 
 
-def region_report(faces: list[FacePatch]) -> dict[str, float]:
-    """Per-region figures of one region's (left-half) faces."""
-    g0, g1 = inner_g1(faces)
-    return {"faces": len(faces), "inner_g0_mm": g0, "inner_g1_deg": g1,
+def region_report(faces: list[FacePatch], side_turn_deg: np.ndarray | None = None,
+                  smooth_deg: float = 0.5) -> dict[str, float]:
+    """Per-region figures of one region's (left-half) faces.
+
+    ``inner_g1_deg`` is the largest normal angle across inner ribs whose ends sit where both
+    sides are smooth (side turn below ``smooth_deg``; ``side_turn_deg`` per rib, (K,)); ribs
+    ending at a corner of a side are reported apart (``corner_ribs``, ``corner_g1_deg``).
+    """
+    seams = inner_seams(faces)
+    turn = np.zeros(len(faces) + 1) if side_turn_deg is None else np.asarray(side_turn_deg)
+    corner = turn[1:-1] >= smooth_deg
+    smooth = seams[~corner]
+    return {"faces": len(faces),
+            "inner_g0_mm": float(seams[:, 0].max()) if len(seams) else 0.0,
+            "inner_g1_deg": float(smooth[:, 1].max()) if len(smooth) else 0.0,
+            "corner_ribs": int(corner.sum()),
+            "corner_g1_deg": float(seams[corner, 1].max()) if corner.any() else 0.0,
             "min_scaled_jacobian": min(scaled_jacobian(f.net) for f in faces)}

@@ -471,12 +471,14 @@ def build_junctions_and_curves(d: DesignTable) -> dict[str, np.ndarray]:
     c["sill_rear_end"] = smooth_chain([drb, sill_r], end_tangent=[0, 0, -1])[0]
     put("sill_bottom", smooth_chain(
         [sill_f, _lerp(sill_f, sill_r, 1 / 3), _lerp(sill_f, sill_r, 2 / 3), sill_r]))
-    # Door shut lines leave the belt line heading down (not back along the belt), so the door,
-    # fender and rear-quarter regions have a real corner there and a non-crossing outline.
-    c["door_front_edge"] = smooth_chain([wfb, dfb], start_tangent=_unit(dfb - wfb) + np.array([0, 0, -1.0]),
-                                        end_tangent=[0, 0, -1])[0]
-    c["door_rear_edge"] = smooth_chain([wrb, drb], start_tangent=_unit(drb - wrb) + np.array([0, 0, -1.0]),
-                                       end_tangent=[0, 0, -1])[0]
+    # Door shut lines leave the belt line heading down along their chord (not back along the
+    # belt) and turn towards the vertical at the sill, so the door, fender and rear-quarter
+    # regions have a real corner at the belt and a simple, non-crossing outline.
+    down = np.array([0, 0, -1.0])
+    c["door_front_edge"] = smooth_chain([wfb, dfb], start_tangent=_unit(dfb - wfb),
+                                        end_tangent=_unit(dfb - wfb) + down)[0]
+    c["door_rear_edge"] = smooth_chain([wrb, drb], start_tangent=_unit(drb - wrb),
+                                       end_tangent=_unit(drb - wrb) + down)[0]
     return c
 
 
