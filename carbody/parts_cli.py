@@ -32,23 +32,33 @@ def curve_centre(poles: np.ndarray, samples: int = 64) -> list[float]:
     return (seg @ mids / seg.sum()).tolist() if seg.sum() > 0 else pts[0].tolist()
 
 
+def face_region(name: str) -> str:
+    """Region of a body face named ``REGION_K`` or ``REGION_right_K``."""
+    stem = name.rsplit("_", 1)[0] if name.rsplit("_", 1)[-1].isdigit() else name
+    return stem[: -len("_right")] if stem.endswith("_right") else stem
+
+
 def list_parts(path: Path) -> dict:
     """{product, curves: [{name, centre}], faces: [{name, region, centre, area}]} of a STEP file."""
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+
+    from carbody.occ.step_body import read_body_step
     from carbody.occ.step_curves import read_curves_step
 
-    faces: list[dict] = []
-    try:
-        from carbody.occ.step_body import list_body_faces  # the surfaces stage's reader
-    except ImportError:
-        list_body_faces = None
-    if list_body_faces is not None:
-        faces = list_body_faces(path)
+    body = read_body_step(path)
+    if body.faces:
+        faces = []
+        for name, _, face in body.faces:
+            props = GProp_GProps()
+            BRepGProp.SurfaceProperties_s(face, props)
+            c = props.CentreOfMass()
+            faces.append({"name": name, "region": face_region(name), "centre": [c.X(), c.Y(), c.Z()],
+                          "area": props.Mass()})
+        return {"product": body.product, "curves": [], "faces": faces}
     product, curves = read_curves_step(path)
-    return {
-        "product": product,
-        "curves": [{"name": c.name, "centre": curve_centre(c.poles)} for c in curves if len(c.poles)],
-        "faces": faces,
-    }
+    return {"product": product, "curves": [{"name": c.name, "centre": curve_centre(c.poles)} for c in curves],
+            "faces": []}
 
 
 def _parts(args) -> int:

@@ -93,3 +93,29 @@ except core.CarbodyWorkbenchError as exc:
     print("RESULT " + json.dumps(str(exc)))
 """, tmp_path)
     assert "carbody command not found" in result and "\n" not in result
+
+
+def test_a_body_comes_into_freecad_as_parts_named_by_region(tmp_path, topology):
+    from carbody.templates import templates_dir
+    from tests.conftest import run_cli
+
+    body_step = tmp_path / "body.step"
+    run_cli("surface", str(templates_dir() / "volkswagen_golf_mk7.step"), "-o", str(body_step), check=True)
+    listing = json.loads(run_cli("parts", str(body_step), "--json", check=True).stdout)
+    result = run_freecad(f"""
+import json, FreeCAD
+from carbody_wb import core
+doc = FreeCAD.newDocument("t")
+group = core.import_step_parts(doc, {str(body_step)!r}, "Body")
+objs = {{o.Label: o for o in group.Group}}
+shell = objs.pop("BodyShell")
+print("RESULT " + json.dumps({{
+    "regions": sorted(objs),
+    "valid": all(o.Shape.isValid() for o in objs.values()) and shell.Shape.isValid(),
+    "faces": sum(len(o.Shape.Faces) for o in objs.values()),
+    "shell_faces": len(shell.Shape.Faces),
+}}))
+""", tmp_path)
+    assert result["regions"] == sorted(r.name for r in topology.regions)
+    assert result["valid"]
+    assert result["faces"] == result["shell_faces"] == len(listing["faces"])

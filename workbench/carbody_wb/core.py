@@ -114,8 +114,9 @@ def import_step_parts(doc, step_path, group_name, command=None):
     for name, shapes in parts.items():
         obj = doc.addObject("Part::Feature", name)
         obj.Label = name
-        obj.Shape = shapes[0] if len(shapes) == 1 else (
-            Part.Shell(shapes) if key == "region" else Part.Compound(shapes))
+        # A region's two mirror halves need not touch: a compound holds them either way; the
+        # sewn shell itself is the BodyShell object below.
+        obj.Shape = shapes[0] if len(shapes) == 1 else Part.Compound(shapes)
         group.addObject(obj)
     if key == "region":
         whole = doc.addObject("Part::Feature", f"{group_name}Shell")
