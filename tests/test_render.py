@@ -133,3 +133,19 @@ def test_bad_inputs_raise_render_error(tmp_path):
     with pytest.raises(RenderError):
         save_png(np.zeros((4, 4)), tmp_path / "x.png")
     assert not list(tmp_path.iterdir())
+
+
+def test_surfaced_body_renders_both_halves_with_glass(templates):
+    """A real body from our surfacing: both halves are meshed, glass regions come out dark."""
+    surface = pytest.importorskip("carbody.surface")
+    _, wf = templates[0]
+    body = surface.build_body(wf, check=False)
+    meshes = tessellate(body)
+    xs = np.concatenate([m.vertices[:, 0] for m in meshes])
+    assert xs.min() < -0.9 * wf.control_points[:, 0].max() and xs.max() > 0.9 * wf.control_points[:, 0].max()
+    assert {"side_window", "windshield", "door", "hood"} <= {m.name for m in meshes}
+    img = render_shape(body, "side", size=(240, 160), paint=(0.9, 0.9, 0.9), glass=(0.0, 0.0, 0.0),
+                       background=(0.0, 0.6, 0.0), specular=0.0)
+    dark = (img.max(axis=2) < 60).sum()          # glass (background is green)
+    bright = (img.min(axis=2) > 150).sum()
+    assert dark > 100 and bright > 1000

@@ -231,3 +231,24 @@ def test_view_cli_refuses_bad_input_in_one_line(tmp_path):
     assert proc.stderr.strip().count("\n") == 0 and "not an image" in proc.stderr
     proc = run_cli("train-view", str(tmp_path / "nothing"), "-o", str(tmp_path / "w.pt"))
     assert proc.returncode == 2 and "no such" in proc.stderr
+
+
+def test_rendered_bodies_have_wheels_lamps_and_grille_in_place(library, templates):
+    """The data set's bodies: our surfaced shell plus wheels at the wheel centres, head lights and
+    grille on the front face, tail lights on the tail, each on both sides."""
+    pytest.importorskip("carbody.surface")
+    from carbody.view.dataset import body_meshes, choose_bodies
+
+    spec = choose_bodies(library, [r for r, _ in templates], 1, 0)[0]
+    meshes = body_meshes(spec)
+    by = {}
+    for m in meshes:
+        by.setdefault(m.name, []).append(m.vertices)
+    v = {k: np.concatenate(x) for k, x in by.items()}
+    wheelbase = float(library.template_wheelbase_mm[0])
+    assert v["headlight"][:, 1].max() < 0 and v["grille"][:, 1].max() < 0        # ahead of the front axle
+    assert v["taillight"][:, 1].min() > wheelbase                               # behind the rear axle
+    for k in ("headlight", "taillight", "tyre", "rim"):
+        assert v[k][:, 0].min() < 0 < v[k][:, 0].max()                           # both sides
+    tyre_z = v["tyre"][:, 2]
+    assert tyre_z.min() == pytest.approx(-spec.tyre_radius_mm, rel=0.01)

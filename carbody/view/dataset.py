@@ -108,7 +108,8 @@ def _slug(name: str) -> str:
 
 
 def wheel_meshes(control_points_mm: np.ndarray, tyre_radius_mm: float, segments: int = 40):
-    """Four simple wheels (tyre tread + sidewall ``"tyre"``, a ``"rim"`` disc) at the wheel centres.
+    """Four simple wheels (tyre tread + sidewall ``"tyre"``, a ``"rim"`` disc) at the wheel centres,
+    dark wheel wells and a floor (``"underbody"``) so no background shows through the open shell.
 
     Returns:
         list of :class:`carbody.render.FaceMesh`, mm, both sides of the car.
@@ -144,13 +145,63 @@ def wheel_meshes(control_points_mm: np.ndarray, tyre_radius_mm: float, segments:
         side_t = np.r_[np.c_[i, i + segments, j], np.c_[j, i + segments, j + segments]]
         rim_v = np.vstack([at(x_out + 1.0, r_rim), [[x_out + 1.0 - 0.02 * R, yc, zc]]])
         rim_t = np.c_[np.full(segments, segments), j, i]
+        # wheel well: a dark upper half-disc inboard of the tyre, so the arch does not show the sky
+        b = np.radians(np.linspace(-15, 195, segments))
+        x_in = x_out - width - 2.0
+        well_v = np.vstack([np.c_[np.full(segments, x_in), yc + 1.3 * R * np.cos(b), zc + 1.3 * R * np.sin(b)],
+                            [[x_in, yc, zc]]])
+        well_t = np.c_[np.full(segments - 1, segments), np.arange(segments - 1), np.arange(1, segments)]
         meshes += [FaceMesh("tyre", tread_v, tread_t), FaceMesh("tyre", side_v, side_t),
-                   FaceMesh("rim", rim_v, rim_t)]
+                   FaceMesh("rim", rim_v, rim_t), FaceMesh("underbody", well_v, well_t)]
+    # underbody: a dark floor at the wheel-centre height between the wheels' inner faces
+    y0, y1 = front[0] - 1.3 * R, rear[0] + 1.3 * R
+    zf = (front[1] + rear[1]) / 2
+    floor_v = np.array([[0.0, y0, zf], [x_out - width - 2.0, y0, zf], [x_out - width - 2.0, y1, zf], [0.0, y1, zf]])
+    meshes.append(FaceMesh("underbody", floor_v, np.array([[0, 1, 2], [0, 2, 3]])))
     return meshes + mirrored(meshes)
 
 
+#: Lamps and grille on the front face / tail, as fractions of the region's half-width (x, from the
+#: symmetry plane) and height (z, from the region's top): (name, region, x0, x1, z0, z1, outward y).
+DETAILS = (
+    ("headlight", "front_face", 0.55, 0.93, 0.06, 0.32, -1.0),
+    ("grille", "front_face", 0.0, 0.45, 0.30, 0.62, -1.0),
+    ("taillight", "tail", 0.58, 0.95, 0.05, 0.30, 1.0),
+)
+
+
+def detail_meshes(meshes, grid: int = 6):
+    """Head lights, grille and tail lights as thin patches lying on the body's front face and tail
+    (both sides), so a render shows which end is the front as a photo does.
+
+    Each patch is a (grid × grid) sheet over the left half's region vertices, 3 mm proud of the
+    surface; names ``headlight``, ``grille``, ``taillight`` (colours come from the Look).
+    """
+    from carbody.render.mesh import FaceMesh, mirrored
+
+    out = []
+    for name, region, x0, x1, z0, z1, out_y in DETAILS:
+        v = np.concatenate([m.vertices for m in meshes if m.name == region] or [np.zeros((0, 3))])
+        v = v[v[:, 0] >= 0]
+        if len(v) < 10:
+            continue
+        xmax, ztop, zbot = v[:, 0].max(), v[:, 2].max(), v[:, 2].min()
+        h = ztop - zbot
+        gx, gz = np.meshgrid(np.linspace(x0, x1, grid) * xmax, ztop - np.linspace(z0, z1, grid) * h)
+        q = np.c_[gx.ravel(), gz.ravel()]
+        d = np.linalg.norm(v[None, :, [0, 2]] - q[:, None, :], axis=2)        # (g², n)
+        near = d <= max(d.min(axis=1).max(), 0.03 * h) * 1.5
+        y = np.where(near, v[None, :, 1] * out_y, -np.inf).max(axis=1) * out_y + 3.0 * out_y
+        verts = np.c_[q[:, 0], y, q[:, 1]]
+        i, k = np.meshgrid(np.arange(grid - 1), np.arange(grid - 1), indexing="ij")
+        a = (i * grid + k).ravel()
+        tris = np.r_[np.c_[a, a + 1, a + grid], np.c_[a + 1, a + grid + 1, a + grid]]
+        out.append(FaceMesh(name, verts, tris))
+    return out + mirrored(out)
+
+
 def body_meshes(spec: BodySpec, surface_body: Callable | None = None):
-    """Tessellated body (both halves, region names) plus wheels, mm."""
+    """Tessellated body (both halves, region names) plus wheels, lamps and grille, mm."""
     from carbody.render import tessellate
     from carbody.wireframe import Wireframe
 
@@ -164,7 +215,8 @@ def body_meshes(spec: BodySpec, surface_body: Callable | None = None):
         body = build_body(wireframe, check=False)
     else:
         body = surface_body(wireframe)
-    return tessellate(body) + wheel_meshes(spec.control_points_mm, spec.tyre_radius_mm)
+    meshes = tessellate(body)
+    return meshes + wheel_meshes(spec.control_points_mm, spec.tyre_radius_mm) + detail_meshes(meshes)
 
 
 # ----------------------------------------------------------------------------------------- looks
@@ -209,6 +261,11 @@ def random_background(rng: np.random.Generator, size: int = IMAGE_SIZE) -> tuple
     return (np.clip(img, 0, 1) * 255).astype(np.uint8), kind
 
 
+#: Colours of wheels, lamps and grille when colour variation is off (and for tests).
+FIXED_DETAIL_COLOURS = {"tyre": (0.06, 0.06, 0.06), "rim": (0.6, 0.6, 0.6), "underbody": (0.03, 0.03, 0.03),
+                        "headlight": (0.85, 0.85, 0.82), "grille": (0.08, 0.08, 0.08), "taillight": (0.75, 0.05, 0.05)}
+
+
 @dataclass
 class Shot:
     """Everything about one image but the body (all angles in degrees)."""
@@ -249,11 +306,14 @@ def sample_shot(rng: np.random.Generator, class_index: int, vary: Variation):
                      light_intensity=rng.uniform(0.5, 1.1), ambient=rng.uniform(0.1, 0.45),
                      specular=rng.uniform(0.1, 0.7))
         colours = {"tyre": tuple(np.full(3, rng.uniform(0.03, 0.12))),
-                   "rim": tuple(np.full(3, rng.uniform(0.3, 0.85)))}
+                   "rim": tuple(np.full(3, rng.uniform(0.3, 0.85))), "underbody": (0.03, 0.03, 0.03),
+                   "headlight": tuple(np.clip(rng.uniform(0.6, 0.95) + rng.normal(0, 0.03, 3), 0, 1)),
+                   "grille": tuple(np.full(3, rng.uniform(0.02, 0.25))),
+                   "taillight": (rng.uniform(0.5, 0.9), rng.uniform(0.0, 0.1), rng.uniform(0.0, 0.1))}
     else:
         paint, glass = np.array([0.72, 0.73, 0.75]), np.array([0.07, 0.09, 0.11])
         light = {}
-        colours = {"tyre": (0.06, 0.06, 0.06), "rim": (0.6, 0.6, 0.6)}
+        colours = dict(FIXED_DETAIL_COLOURS)
     if vary.background:
         background, kind = random_background(rng)
     else:
