@@ -34,6 +34,14 @@ from carbody.surface.regions import (SIDE_A, SIDE_B, BoundarySamples, Chain, Reg
                                      bezier_derivs, bezier_points, split_bezier)
 from carbody.surface.skeleton import OptimalPair
 
+#: An optimal pair cutting a square-ish part can be a diagonal; as a rib it would shear the net.
+#: Pairs whose ends sit at arc-length fractions further apart than this along the two sides stay
+#: in the skeleton but are not used as ribs.
+MAX_RIB_SKEW = 0.2
+
+#: Largest factor by which a face's side lengths ratio (A over B) may differ from the region's.
+MAX_FAN = 2.5
+
 #: Weight of the arc-length-proportional match blended into the DTW correspondence.
 DTW_BLEND = 0.3
 
@@ -269,6 +277,20 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
         if da >= min_gap_mm and db >= min_gap_mm and _strictly_ordered(np.array([a, b]), fixed):
             keep.append((a, b))
     skel = _monotone(np.array(keep).reshape(-1, 2), na, nb)
+    # a skeleton rib that makes a strong fan with a neighbour (spacing ratio along A vs B far
+    # from the region's) is dropped: such faces are wedges whose control nets fold
+    ratio = la_t[-1] / lb_t[-1]
+    while len(skel):
+        allr = np.vstack([fixed, skel])
+        order = np.argsort(allr[:, 0], kind="stable")
+        allr, is_skel = allr[order], (np.arange(len(allr)) >= len(fixed))[order]
+        da, db = np.diff(arc_a(allr[:, 0])), np.diff(arc_b(allr[:, 1]))
+        fan = np.abs(np.log(np.maximum(da, 1e-9) / np.maximum(db, 1e-9) / ratio))
+        bad = [k for k in np.argsort(-fan) if fan[k] > np.log(MAX_FAN)]
+        drop = next((j for k in bad for j in (k, k + 1) if is_skel[j]), None)
+        if drop is None:
+            break
+        skel = np.array([r for r in skel if not np.array_equal(r, allr[drop])]).reshape(-1, 2)
     inner = np.vstack([junc, skel])
     kinds = ["junction"] * len(junc) + ["skeleton"] * len(skel)
     order = np.argsort(inner[:, 0], kind="stable")
@@ -336,7 +358,25 @@ def rib_rows(outline: RegionOutline, ribs: np.ndarray) -> np.ndarray:
         n2 = (1 - ratio_a[k]) * begin_n[1] + ratio_a[k] * end_n[1]
         rows[k] = [p0, p0 + length * n1 @ frame, p0 + length * n2 @ frame, p3]
     rows[0], rows[-1] = outline.begin, outline.end
+    # A rib leaving the symmetry plane leaves it square (as the transverse wireframe curves do),
+    # so the body is smooth across the plane where it meets its mirror.
+    for k in range(1, len(ribs) - 1):
+        if on_symmetry_plane(outline.side_b, ribs[k, 1]):
+            rows[k, 1] = rows[k, 0] + _lateral(rows[k, 1] - rows[k, 0])
+        if on_symmetry_plane(outline.side_a, ribs[k, 0]):
+            rows[k, 2] = rows[k, 3] + _lateral(rows[k, 2] - rows[k, 3])
     return rows
+
+
+def on_symmetry_plane(chain: Chain, s: float, tol: float = 1e-6) -> bool:
+    """True when the chain piece at s lies in the symmetry plane x = 0."""
+    i = min(int(s), chain.n - 1)
+    return bool(np.abs(chain.poles[i][:, 0]).max() < tol)
+
+
+def _lateral(d: np.ndarray) -> np.ndarray:
+    """The vector d turned to point straight across the symmetry plane (along ±x), same length."""
+    return np.array([np.sign(d[0]) * np.linalg.norm(d) if d[0] != 0 else np.linalg.norm(d), 0.0, 0.0])
 
 
 # --------------------------------------------------------------------------- patches
@@ -367,20 +407,40 @@ def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray) -> list[
     """Bicubic Bezier patches between consecutive ribs (G1 across inner ribs; see module doc)."""
     K = len(ribs)
     mids = np.array([bezier_points(r, [0.5])[0] for r in rows])
+    subs = [(_sub_arc(outline.side_b, ribs[k, 1], ribs[k + 1, 1]), _sub_arc(outline.side_a, ribs[k, 0], ribs[k + 1, 0]))
+            for k in range(K - 1)]
+    # cross-derivative lengths of the side sub-arcs at each rib, after (+) and before (-) it
+    after = [(np.linalg.norm(3 * (b[0][1] - b[0][0])), np.linalg.norm(3 * (a[0][1] - a[0][0]))) for b, a in subs]
+    before = [(np.linalg.norm(3 * (b[0][3] - b[0][2])), np.linalg.norm(3 * (a[0][3] - a[0][2]))) for b, a in subs]
     fields = []
+    x = np.array([1.0, 0.0, 0.0])
     for k in range(K):
-        e0 = _side_tangent(outline.side_b, ribs[k, 1])
-        e2 = _side_tangent(outline.side_a, ribs[k, 0])
+        # E_k's end lengths: geometric mean of the two patches' side lengths at the rib, so that
+        # σ(u) stays near 1 and a patch with one short side does not fold its control net
+        lb = np.sqrt(np.prod([v[0] for v in (after[k:k + 1] + before[k - 1:k] if k else after[:1])]))
+        la = np.sqrt(np.prod([v[1] for v in (after[k:k + 1] + before[k - 1:k] if k else after[:1])]))
+        if k == K - 1:
+            lb, la = before[-1]
+        e0 = lb * _side_tangent(outline.side_b, ribs[k, 1])
+        e2 = la * _side_tangent(outline.side_a, ribs[k, 0])
         m = mids[min(k + 1, K - 1)] - mids[max(k - 1, 0)]
-        m /= np.linalg.norm(m)
-        fields.append(np.array([e0, 2 * m - (e0 + e2) / 2, e2]))
+        m *= (la + lb) / 2 / np.linalg.norm(m)
+        e1 = 2 * m - (e0 + e2) / 2
+        if k in (0, K - 1) and np.abs(rows[k][:, 0]).max() < 1e-6 and abs(e0[0]) > 0.999 * lb \
+                and abs(e2[0]) > 0.999 * la:
+            e1 = (e0 + e2) / 2  # an end curve on the symmetry plane: cross it square
+        elif on_symmetry_plane(outline.side_b, ribs[k, 1]) or on_symmetry_plane(outline.side_a, ribs[k, 0]):
+            t = e0 if on_symmetry_plane(outline.side_b, ribs[k, 1]) else e2
+            basis = np.linalg.qr(np.stack([x, t], axis=1))[0]
+            e1 = basis @ (basis.T @ e1)  # stay in the plane of x and the centre line
+        fields.append((np.array([e0, e1, e2]), lb, la))
     faces = []
     for k in range(K - 1):
-        sub_b, ib, tb0, tb1 = _sub_arc(outline.side_b, ribs[k, 1], ribs[k + 1, 1])
-        sub_a, ia, ta0, ta1 = _sub_arc(outline.side_a, ribs[k, 0], ribs[k + 1, 0])
-        plus = _cross(np.linalg.norm(3 * (sub_b[1] - sub_b[0])), np.linalg.norm(3 * (sub_a[1] - sub_a[0])), fields[k])
-        minus = _cross(np.linalg.norm(3 * (sub_b[3] - sub_b[2])), np.linalg.norm(3 * (sub_a[3] - sub_a[2])),
-                       fields[k + 1])
+        (sub_b, ib, tb0, tb1), (sub_a, ia, ta0, ta1) = subs[k]
+        e, lb, la = fields[k]
+        plus = _cross(after[k][0] / lb, after[k][1] / la, e)
+        e, lb, la = fields[k + 1]
+        minus = _cross(before[k][0] / lb, before[k][1] / la, e)
         grid = np.array([rows[k], rows[k] + plus / 3, rows[k + 1] - minus / 3, rows[k + 1]])  # [v, u]
         grid[:, 0] = sub_b
         grid[:, 3] = sub_a
@@ -413,7 +473,13 @@ def region_net(outline: RegionOutline, samples: BoundarySamples, pairs: list[Opt
                min_gap_mm: float) -> RegionNet:
     """Ribs, control curves and faces of one region from its skeleton's optimal pairs."""
     na, nb = outline.side_a.n, outline.side_b.n
-    skel = _monotone(skeleton_ribs(samples, pairs), na, nb)
+    skel = skeleton_ribs(samples, pairs)
+    if len(skel):
+        sa_t, la_t = outline.side_a.arc_table()
+        sb_t, lb_t = outline.side_b.arc_table()
+        skew = np.abs(np.interp(skel[:, 0], sa_t, la_t) / la_t[-1] - np.interp(skel[:, 1], sb_t, lb_t) / lb_t[-1])
+        skel = skel[skew <= MAX_RIB_SKEW]
+    skel = _monotone(skel, na, nb)
     corr = dtw_correspondence(outline, samples, skel)
     ribs, kinds = net_ribs(outline, skel, corr, min_gap_mm)
     rows = rib_rows(outline, ribs)

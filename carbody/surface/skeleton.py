@@ -100,6 +100,23 @@ def candidate_values(points: np.ndarray, normals: np.ndarray, part: np.ndarray, 
     if allarea <= 0:
         return empty
 
+    # cheap pre-filter on eq. 6's area conditions: shoelace sums by prefix sums (the same
+    # |signed area| shapely gives a ring); the survivors are measured with shapely below
+    x, y = xy[:, 0], xy[:, 1]
+    cross = x * np.roll(y, -1) - np.roll(x, -1) * y
+    prefix = np.r_[0.0, np.cumsum(cross)]
+    chord_term = x[qq] * y[pp] - x[pp] * y[qq]
+    s1 = prefix[qq] - prefix[pp] + chord_term
+    s2 = prefix[-1] - s1
+    b1, b2 = 0.5 * np.abs(s1), 0.5 * np.abs(s2)
+    lo, hi = np.minimum(b1, b2), np.maximum(b1, b2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        keep = (np.abs(b1 + b2 - allarea) / allarea < AREA_SUM_TOL) & (hi / lo < AREA_RATIO_MAX) \
+            & (lo / allarea > AREA_MIN_FRACTION)
+    pp, qq = pp[keep], qq[keep]
+    if len(pp) == 0:
+        return empty
+
     # the two parts of every chord as ragged rings: part[p..q] and part[q..p] (cyclic)
     len1, len2 = qq - pp + 1, m - (qq - pp) + 1
     idx1, run1 = _ragged_index(pp, len1, m)
