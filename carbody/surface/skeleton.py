@@ -25,9 +25,11 @@ Two readings are ours and argued here:
   sample spacings, about 100 mm on a car): the ribs then end up a few spacings apart, as in the
   paper's Fig. 17.
 * Areas come from shapely (vectorised over all candidate chords: rings built with
-  ``shapely.linearrings(..., indices=...)``); since shapely's area of a self-crossing ring is
-  the absolute shoelace sum, a chord that leaves the region makes a1 + a2 exceed allarea and
-  fails the first constraint, as the paper intends.
+  ``shapely.linearrings(..., indices=...)``), after a cheap prefix-sum shoelace pre-filter that
+  gives the same |signed area|; a chord that leaves the region makes a1 + a2 exceed allarea and
+  fails the first constraint, as the paper intends. A chord that only grazes outside passes
+  that test, so chords are also required to lie inside the region (``shapely.covers``): the
+  constraint's intent, tested exactly.
 
 Everything works on 2D points in normalised units; no OCCT.
 """
@@ -69,8 +71,25 @@ def _ragged_index(starts: np.ndarray, lengths: np.ndarray, m: int) -> tuple[np.n
     return (np.repeat(starts, lengths) + offset) % m, run
 
 
+def _fold_overlap(c1, run1, pi, unit, poly2, sel) -> np.ndarray:
+    """Area where part 1 of each selected chord, folded about the chord, overlaps part 2."""
+    in1 = np.isin(run1, sel)
+    rel = c1[in1] - pi[run1[in1]]
+    u = unit[run1[in1]]
+    along = (rel * u).sum(axis=1, keepdims=True) * u
+    folded = pi[run1[in1]] + 2 * along - rel
+    _, run_sel = np.unique(run1[in1], return_inverse=True)
+    f1 = shapely.polygons(shapely.linearrings(folded, indices=run_sel))
+    p2 = poly2[sel]
+    bad = ~(shapely.is_valid(f1) & shapely.is_valid(p2))
+    if bad.any():
+        f1[bad] = shapely.make_valid(f1[bad])
+        p2[bad] = shapely.make_valid(p2[bad])
+    return shapely.area(shapely.intersection(f1, p2))
+
+
 def candidate_values(points: np.ndarray, normals: np.ndarray, part: np.ndarray, free: np.ndarray,
-                     min_height: float = 0.0) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+                     min_height: float = 0.0, best_only: bool = False) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """ijvalue of every chord of one polygon that satisfies eq. 6.
 
     Args:
@@ -79,6 +98,8 @@ def candidate_values(points: np.ndarray, normals: np.ndarray, part: np.ndarray, 
         part: (m,) int, the polygon's sample indices in boundary order (a part of the region).
         free: (n,) bool, samples not yet used by a pair.
         min_height: smallest H1, H2 allowed (normalised units).
+        best_only: fold only as many chords as needed to be sure of the best one (the others
+            are left out of the result).
     Returns:
         (k, 2) positions (p, q) into ``part`` of the admissible chords, and a dict of (k,) arrays
         value, area1, area2, arearatio, h1, h2.
@@ -146,26 +167,40 @@ def candidate_values(points: np.ndarray, normals: np.ndarray, part: np.ndarray, 
     sel = np.flatnonzero(ok)
     if len(sel) == 0:
         return empty
+    # a chord must stay inside the region (what the first condition of eq. 6 approximates);
+    # testing it exactly also keeps both parts simple polygons for the fold below
+    region = shapely.buffer(shapely.polygons(xy), 1e-9 * np.sqrt(allarea))
+    shapely.prepare(region)
+    inside = shapely.covers(region, shapely.linestrings(np.stack([pi[sel], pj[sel]], axis=1)))
+    ok[sel[~inside]] = False
+    sel = sel[inside]
+    if len(sel) == 0:
+        return empty
 
-    # fold part 1 about its chord and overlap it with part 2
-    in1 = np.isin(run1, sel)
-    rel = c1[in1] - pi[run1[in1]]
-    u = unit[run1[in1]]
-    along = (rel * u).sum(axis=1, keepdims=True) * u
-    folded = pi[run1[in1]] + 2 * along - rel
-    _, run_sel = np.unique(run1[in1], return_inverse=True)
-    f1 = shapely.polygons(shapely.linearrings(folded, indices=run_sel))
-    p2 = poly2[sel]
-    bad = ~(shapely.is_valid(f1) & shapely.is_valid(p2))
-    if bad.any():
-        f1[bad] = shapely.make_valid(f1[bad])
-        p2[bad] = shapely.make_valid(p2[bad])
+    # fold part 1 about its chord and overlap it with part 2. The overlap is at most the smaller
+    # part, which bounds ijvalue; with ``best_only`` chords are folded in order of that bound
+    # and the search stops once no unfolded chord can beat the best folded one.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shape_factor = lo / hi * np.minimum(h1, h2) / np.maximum(h1, h2) * (h1 + h2) / length
+    bound = np.minimum(lo / allarea, 0.5) * shape_factor
+    sel = sel[np.argsort(-bound[sel], kind="stable")]
     arearatio = np.zeros(len(pp))
-    arearatio[sel] = shapely.area(shapely.intersection(f1, p2)) / allarea
+    evaluated = np.zeros(len(pp), bool)
+    best = -np.inf
+    chunk = 24 if best_only else len(sel)
+    for start in range(0, len(sel), chunk):
+        part_sel = np.sort(sel[start:start + chunk])
+        if bound[part_sel].max() <= best:
+            break
+        arearatio[part_sel] = _fold_overlap(c1, run1, pi, unit, poly2, part_sel) / allarea
+        evaluated[part_sel] = True
+        good = part_sel[arearatio[part_sel] > FOLD_RATIO_MIN]
+        if len(good):
+            best = max(best, float((arearatio[good] * shape_factor[good]).max()))
+    ok &= evaluated
     ok &= arearatio > FOLD_RATIO_MIN
     sel = np.flatnonzero(ok)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        value = arearatio * lo / hi * np.minimum(h1, h2) / np.maximum(h1, h2) * (h1 + h2) / length
+    value = arearatio * shape_factor
     out = {"value": value[sel], "area1": a1[sel], "area2": a2[sel], "arearatio": arearatio[sel],
            "h1": h1[sel], "h2": h2[sel]}
     return np.stack([pp[sel], qq[sel]], axis=1), out
@@ -182,7 +217,7 @@ def optimal_pair(points: np.ndarray, normals: np.ndarray, part: np.ndarray | Non
     """
     part = np.arange(len(points)) if part is None else np.asarray(part)
     free = np.ones(len(points), bool) if free is None else free
-    pq, q = candidate_values(points, normals, part, free, min_height)
+    pq, q = candidate_values(points, normals, part, free, min_height, best_only=True)
     if len(pq) == 0:
         return None
     k = int(np.argmax(q["value"]))
