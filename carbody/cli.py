@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "carbody.demo",
     "carbody.parts_cli",
     "carbody.view.cli",
+    "carbody.fit.cli",
     "carbody.surface.cli",
 )
 

@@ -1,0 +1,127 @@
+"""The camera contract every stage uses (SPEC "Frames and units"), and the paper's eq. 1.
+
+A view is an azimuth θ around z (0° front, 90° left side, 180° rear, 270° right side), an
+elevation φ above the horizon and a roll ψ of the image about the viewing axis. The unit vector
+from the car toward the camera is d = (sin θ cos φ, −cos θ cos φ, sin φ); forward f = −d,
+image-right r = (f × ẑ)/|f × ẑ|, image-up w = r × f, both turned by the roll. A point p (car frame)
+lands at u = u0 + s·(p·r), v = v0 − s·(p·w): orthographic, pixels, v down.
+
+The paper writes the same camera as a rotation R = Rz(γ)·Ry(β)·Rx(α) (eq. 1) followed by dropping
+x; :func:`view_rotation` gives that R with rows (d, r, w) and :func:`eq1_angles` its (α, β, γ).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from carbody.errors import AngleError
+
+#: Elevations this close to ±90° (straight down/up) have no image-right direction.
+MAX_ABS_ELEVATION_DEG = 85.0
+
+
+@dataclass(frozen=True)
+class View:
+    """A camera direction, degrees.
+
+    Attributes:
+        azimuth: θ, 0° front, 90° left side, 180° rear, 270° right side.
+        elevation: φ, camera height angle above the horizon (+ looking down at the car).
+        roll: ψ about the viewing axis; + turns the picture's content counter-clockwise
+            (image-up becomes w·cos ψ + r·sin ψ, as :mod:`carbody.render.camera`).
+    """
+
+    azimuth: float
+    elevation: float = 0.0
+    roll: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("azimuth", "elevation", "roll"):
+            if not np.isfinite(getattr(self, name)):
+                raise AngleError(f"view {name} is not a finite number")
+        if abs(self.elevation) > MAX_ABS_ELEVATION_DEG:
+            raise AngleError(f"view elevation {self.elevation:g}° is outside ±{MAX_ABS_ELEVATION_DEG:g}°")
+
+    def as_dict(self) -> dict[str, float]:
+        return {"azimuth_deg": float(self.azimuth), "elevation_deg": float(self.elevation),
+                "roll_deg": float(self.roll)}
+
+
+def check_azimuth(azimuth: float) -> float:
+    """The azimuth if it lies in 0–360°, else :class:`AngleError`."""
+    try:
+        value = float(azimuth)
+    except (TypeError, ValueError):
+        raise AngleError(f"view angle {azimuth!r} is not a number") from None
+    if not np.isfinite(value) or not 0.0 <= value <= 360.0:
+        raise AngleError(f"view angle {azimuth!r} is outside 0–360°")
+    return value
+
+
+def camera_direction(view: View) -> np.ndarray:
+    """(3,) unit vector from the car toward the camera, d."""
+    t, p = np.radians(view.azimuth), np.radians(view.elevation)
+    return np.array([np.sin(t) * np.cos(p), -np.cos(t) * np.cos(p), np.sin(p)])
+
+
+def view_rotation(view: View) -> np.ndarray:
+    """(3, 3) rotation with rows (d, r, w): toward the camera, image-right, image-up.
+
+    ``view_rotation(v) @ p`` = (depth toward the camera, image-right, image-up) of a point p, the
+    paper's rotate-then-drop-x (eq. 1).
+    """
+    d = camera_direction(view)
+    f = -d
+    r = np.cross(f, [0.0, 0.0, 1.0])
+    r /= np.linalg.norm(r)
+    w = np.cross(r, f)
+    c, s = np.cos(np.radians(view.roll)), np.sin(np.radians(view.roll))
+    return np.array([d, c * r - s * w, c * w + s * r])
+
+
+def eq1_rotation(alpha: float, beta: float, gamma: float) -> np.ndarray:
+    """The paper's eq. 1, R = Rz(γ)·Ry(β)·Rx(α); angles in degrees, (3, 3)."""
+    a, b, g = np.radians([alpha, beta, gamma])
+    rz = np.array([[np.cos(g), -np.sin(g), 0], [np.sin(g), np.cos(g), 0], [0, 0, 1]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    return rz @ ry @ rx
+
+
+def eq1_angles(view: View) -> tuple[float, float, float]:
+    """(α, β, γ) degrees with ``eq1_rotation(α, β, γ) == view_rotation(view)``."""
+    r = view_rotation(view)
+    beta = -np.arcsin(np.clip(r[2, 0], -1.0, 1.0))
+    alpha = np.arctan2(r[2, 1], r[2, 2])
+    gamma = np.arctan2(r[1, 0], r[0, 0])
+    return tuple(float(v) for v in np.degrees([alpha, beta, gamma]))
+
+
+def project(points: np.ndarray, view: View, scale: float = 1.0,
+            offset: tuple[float, float] | np.ndarray = (0.0, 0.0)) -> np.ndarray:
+    """Image coordinates of car-frame points.
+
+    Args:
+        points: (..., 3) float, car frame (any length unit).
+        view: the camera.
+        scale: pixels per length unit, s.
+        offset: (u0, v0) pixels, image position of the car-frame origin.
+    Returns:
+        (..., 2) float, pixels (u right, v down).
+    """
+    rot = view_rotation(view)
+    p = np.asarray(points, dtype=float)
+    u = offset[0] + scale * (p @ rot[1])
+    v = offset[1] - scale * (p @ rot[2])
+    return np.stack([u, v], axis=-1)
+
+
+def depth(points: np.ndarray, view: View) -> np.ndarray:
+    """(...,) distance of each point toward the camera (larger = nearer), same unit as points."""
+    return np.asarray(points, dtype=float) @ camera_direction(view)
+
+
+def mirror_view(view: View) -> View:
+    """The view of the other side: θ ↔ 360° − θ (the image flips left–right, roll changes sign)."""
+    return View((360.0 - view.azimuth) % 360.0, view.elevation, -view.roll)

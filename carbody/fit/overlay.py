@@ -1,0 +1,71 @@
+"""The overlay picture (paper Fig. 9–10): photo, annotated (red) and reprojected (green)
+keypoints, and the fitted wireframe projected with the refined camera."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from carbody.errors import ImageError
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """(h, w, 3) uint8 BGR image; :class:`ImageError` when it cannot be read."""
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise ImageError(f"{path}: image not found")
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None or img.size == 0:
+        raise ImageError(f"{path}: not a readable image (PNG, JPEG, BMP, TIFF ...)")
+    return img
+
+
+def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
+    """The overlay as a new (h, w, 3) uint8 BGR image.
+
+    Args:
+        image: (h, w, 3) uint8 BGR photo.
+        result: a :class:`carbody.fit.single_view.FitResult`.
+        labels: write each keypoint's number next to it.
+    """
+    import cv2
+
+    from carbody.templates.drawing import sample_curves
+    from carbody.wireframe import MIRROR
+
+    out = image.copy()
+    thick = max(1, round(max(out.shape[:2]) / 800))
+    cp = result.wireframe.control_points
+    for half in (cp, cp * MIRROR):
+        for curve in sample_curves(half, 24):
+            pts = result.project_points(curve)
+            cv2.polylines(out, [np.round(pts * 16).astype(np.int32)], False, (255, 160, 0),
+                          thick, cv2.LINE_AA, shift=4)
+    reproj = result.reprojected()
+    r = 2 + 2 * thick
+    for slot, (u, v), (pu, pv) in zip(result.slots, result.uv, reproj):
+        cv2.line(out, (round(u), round(v)), (round(pu), round(pv)), (0, 200, 255), thick, cv2.LINE_AA)
+        cv2.circle(out, (round(u), round(v)), r, (0, 0, 255), -1, cv2.LINE_AA)
+        cv2.circle(out, (round(pu), round(pv)), r, (0, 200, 0), thick, cv2.LINE_AA)
+        if labels:
+            cv2.putText(out, str(slot.keypoint_id) + ("'" if slot.is_mirror else ""),
+                        (round(u) + r + 1, round(v) - r - 1), cv2.FONT_HERSHEY_SIMPLEX,
+                        0.35 * thick, (0, 0, 200), thick, cv2.LINE_AA)
+    return out
+
+
+def write_image(path: str | Path, image: np.ndarray) -> Path:
+    """Write an image atomically (a temporary file renamed into place)."""
+    import os
+
+    import cv2
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix or '.png'}")
+    if not cv2.imwrite(str(tmp), image):
+        tmp.unlink(missing_ok=True)
+        raise ImageError(f"{path}: cannot write image")
+    os.replace(tmp, path)
+    return path

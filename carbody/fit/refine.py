@@ -1,0 +1,77 @@
+"""Continuous view refinement around the given (classified) angle.
+
+The solve gives, at any view, the best library mix and its residual. The view is refined by
+minimising that residual over azimuth, elevation and roll: a coarse azimuth scan around the given
+angle (the residual is not convex far from the optimum) followed by bounded Gauss–Newton
+(trust-region reflective least squares) on all three angles, the mix re-solved at every step.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from carbody.fit.camera import View
+
+#: How far (degrees) the refined azimuth may move from the given one.
+AZIMUTH_RANGE_DEG = 25.0
+
+#: Range of the refined elevation (degrees), whatever the given one.
+ELEVATION_RANGE_DEG = (-20.0, 60.0)
+
+#: How far (degrees) the refined roll may move from the given one.
+ROLL_RANGE_DEG = 20.0
+
+#: Azimuth offsets (degrees) tried before the continuous refinement.
+AZIMUTH_SCAN_DEG = (-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0)
+
+
+def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations: int = 60):
+    """The view near ``given`` whose solve has the least residual.
+
+    Args:
+        solve_at: view → a solution with ``residual_vector`` ((m,) float) and ``cost``.
+        given: the starting view.
+        max_evaluations: budget of solves for the continuous stage.
+    Returns:
+        (refined View, its solution).
+    """
+    from scipy.optimize import least_squares
+
+    from carbody.errors import FitError
+
+    best_view, best = given, solve_at(given)
+    for d in AZIMUTH_SCAN_DEG:
+        if d == 0:
+            continue
+        v = View(given.azimuth + d, given.elevation, given.roll)
+        try:
+            sol = solve_at(v)
+        except FitError:
+            continue
+        if sol.cost < best.cost:
+            best_view, best = v, sol
+
+    lo = np.array([given.azimuth - AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[0], given.roll - ROLL_RANGE_DEG])
+    hi = np.array([given.azimuth + AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[1], given.roll + ROLL_RANGE_DEG])
+    lo[1], hi[1] = min(lo[1], given.elevation), max(hi[1], given.elevation)
+    cache: dict[tuple, object] = {}
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        key = tuple(np.round(x, 12))
+        if key not in cache:
+            try:
+                cache[key] = solve_at(View(*x))
+            except FitError:
+                cache[key] = None
+        sol = cache[key]
+        return best.residual_vector * 10.0 if sol is None else sol.residual_vector
+
+    x0 = np.clip([best_view.azimuth, best_view.elevation, best_view.roll], lo + 1e-9, hi - 1e-9)
+    fit = least_squares(residual, x0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4,
+                        max_nfev=max_evaluations, method="trf")
+    refined = View(*fit.x)
+    sol = solve_at(refined)
+    if sol.cost <= best.cost:
+        return refined, sol
+    return best_view, best

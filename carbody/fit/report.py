@@ -1,0 +1,86 @@
+"""The fit report (paper Fig. 12–13): refined view, fitted 3D keypoints, reprojection residuals,
+top weights and, against a ground truth, the 3D error per keypoint with a bar chart."""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from carbody.topology import load_topology
+from carbody.wireframe import Wireframe
+
+
+def keypoint_errors_mm(fitted: Wireframe, truth: Wireframe) -> dict[str, float]:
+    """{keypoint: distance mm} between the 35 keypoints of two wireframes (same car frame)."""
+    topo = load_topology()
+    idx = topo.keypoint_point_indices
+    d = np.linalg.norm(fitted.control_points[idx] - truth.control_points[idx], axis=1)
+    return {k.name: float(e) for k, e in zip(topo.keypoints, d)}
+
+
+def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
+    """The report as a JSON-ready dict (see module docstring); lengths in mm, residuals in px."""
+    res = result.residuals_px()
+    report = {
+        "method": result.method,
+        "given_view": result.given_view.as_dict(),
+        "refined_view": result.view.as_dict(),
+        "image_scale_px_per_mm": result.solution.scale / result.mm_per_unit,
+        "image_offset_px": [float(v) for v in result.solution.offset],
+        "wheelbase_mm": result.wheelbase_mm,
+        "keypoints_annotated": len(result.slots),
+        "keypoints_mm": result.keypoints_mm(),
+        "residual_px": res,
+        "residual_px_mean": float(np.mean(list(res.values()))),
+        "residual_px_max": float(np.max(list(res.values()))),
+        "top_weights": result.top_weights(top),
+        "template_mix": result.template_mix(),
+    }
+    if truth is not None:
+        err = keypoint_errors_mm(result.wireframe, truth)
+        report["truth"] = truth.name
+        report["error_mm"] = err
+        report["error_mm_mean"] = float(np.mean(list(err.values())))
+        report["error_mm_max"] = float(np.max(list(err.values())))
+        annotated = {s.name.removesuffix("_right") for s in result.slots}
+        report["error_mm_annotated_mean"] = float(np.mean([err[n] for n in annotated]))
+    return report
+
+
+def write_json(path: str | Path, data: dict) -> Path:
+    """Write JSON atomically."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, indent=1))
+    os.replace(tmp, path)
+    return path
+
+
+def draw_error_chart(errors_mm: dict[str, float], path: str | Path, title: str = "",
+                     annotated: set[str] | None = None) -> Path:
+    """Bar chart of the 3D error per keypoint (paper Fig. 12–13); annotated keypoints dark."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    topo = load_topology()
+    names = [k.name for k in topo.keypoints]
+    vals = [errors_mm[n] for n in names]
+    colours = ["#1f4e9c" if annotated is None or n in annotated else "#9fb3d6" for n in names]
+    fig, ax = plt.subplots(figsize=(11, 4))
+    ax.bar([k.id for k in topo.keypoints], vals, color=colours)
+    ax.set_xticks([k.id for k in topo.keypoints])
+    ax.set_xlabel("keypoint (Fig. 6 number; dark = annotated)")
+    ax.set_ylabel("3D error (mm)")
+    ax.set_title(title or f"keypoint error: mean {np.mean(vals):.1f} mm, max {np.max(vals):.1f} mm")
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path

@@ -1,0 +1,179 @@
+"""Single-view wireframe fitting: keypoints on one photo + a view angle → the car's 3D wireframe.
+
+:func:`fit_wireframe` is the whole stage in one call (the ``carbody fit`` command is a thin layer
+over it): check the keypoints, solve the library mix at the given view, refine the view, and
+return the new model in millimetres with everything the overlay and the report need.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from carbody.errors import FitError
+from carbody.fit.camera import View, project
+from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
+from carbody.fit.refine import refine_view
+from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, KeypointBasis, MixSolution,
+                               ShapeModel, solve_gauss, solve_simplex)
+from carbody.library import Library
+from carbody.tolerances import NORMALISED_WHEELBASE
+from carbody.topology import load_topology
+from carbody.wireframe import Wireframe
+
+#: Library preparations kept per process (keypoint rows, shape models), keyed by the S array.
+_PREPARED: dict[tuple, object] = {}
+
+
+def prepared(library: Library, method: str):
+    """The library's :class:`KeypointBasis` (``"paper"``) or :class:`ShapeModel` (``"gauss"``),
+    built once per library and method."""
+    key = (id(library.S), library.S.shape, method)
+    if key not in _PREPARED:
+        if len(_PREPARED) > 8:
+            _PREPARED.clear()
+        idx = load_topology().keypoint_point_indices
+        _PREPARED[key] = (library.S, KeypointBasis.from_shapes(library.S, idx) if method == "paper"
+                          else ShapeModel.from_shapes(library.S, idx))
+    return _PREPARED[key][1]
+
+
+@dataclass
+class FitResult:
+    """A fitted car.
+
+    Attributes:
+        wireframe: the new model, left half, mm (car frame).
+        view: the refined view; ``given_view`` the one passed in.
+        solution: the mix at the refined view (normalised units).
+        slots: the annotated keypoints; ``uv`` their pixels (k, 2).
+        wheelbase_mm: the wheelbase the model was scaled to.
+        method: ``"gauss"`` or ``"paper"``.
+        library: the library used (names for the report).
+    """
+
+    wireframe: Wireframe
+    view: View
+    given_view: View
+    solution: MixSolution
+    slots: list[KeypointSlot]
+    uv: np.ndarray
+    wheelbase_mm: float
+    method: str
+    library: Library = field(repr=False)
+
+    @property
+    def mm_per_unit(self) -> float:
+        return self.wheelbase_mm / NORMALISED_WHEELBASE
+
+    def keypoints_mm(self) -> dict[str, list[float]]:
+        """{name: [x, y, z] mm} of the 35 left keypoints and the mirrors of those annotated."""
+        out = self.wireframe.keypoints()
+        for s in self.slots:
+            if s.is_mirror:
+                out[s.name] = [float(v) for v in self.wireframe.control_points[s.point_index] * s.sign]
+        return out
+
+    def reprojected(self) -> np.ndarray:
+        """(k, 2) float, pixels of the fitted annotated keypoints under the refined camera."""
+        pts = np.array([self.wireframe.control_points[s.point_index] * s.sign for s in self.slots])
+        return project(pts / self.mm_per_unit, self.view, self.solution.scale, self.solution.offset)
+
+    def residuals_px(self) -> dict[str, float]:
+        """{name: reprojection distance, px} per annotated keypoint."""
+        d = np.linalg.norm(self.reprojected() - self.uv, axis=1)
+        return {s.name: float(e) for s, e in zip(self.slots, d)}
+
+    def project_points(self, points_mm: np.ndarray) -> np.ndarray:
+        """(..., 2) pixels of car-frame points (mm) under the fitted camera."""
+        return project(np.asarray(points_mm) / self.mm_per_unit, self.view, self.solution.scale,
+                       self.solution.offset)
+
+    def top_weights(self, n: int = 10) -> list[dict]:
+        """The n library models of largest |weight|: template, expansion factors, weight."""
+        H = self.solution.H
+        if H is None:
+            return []
+        order = np.argsort(-np.abs(H))[:n]
+        lib = self.library
+        return [{"model": int(j), "template": lib.template_names[lib.template_index[j]],
+                 "factors": dict(zip(("height", "front_overhang", "rear_overhang", "width"),
+                                     (float(f) for f in lib.factors[j]))),
+                 "weight": float(H[j])} for j in order if H[j] != 0]
+
+    def template_mix(self) -> dict[str, float]:
+        """{template: summed weight of its models}; sums to 1."""
+        H = self.solution.H
+        if H is None:
+            return {}
+        sums = np.bincount(self.library.template_index, weights=H, minlength=len(self.library.template_names))
+        return {n: float(w) for n, w in zip(self.library.template_names, sums)}
+
+
+def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
+                  library: Library | None = None, *, image_size: tuple[int, int] | None = None,
+                  wheelbase_mm: float | None = None, method: str = METHODS[0],
+                  prior_weight: float = DEFAULT_PRIOR_WEIGHT, refine: bool = True,
+                  name: str = "fitted car") -> FitResult:
+    """Fit the car's 3D wireframe to keypoints marked on one photo.
+
+    Args:
+        keypoints: {name: (u, v)} pixels; any subset of the 35 names and their ``_right`` mirrors.
+        view: the view (or its azimuth in degrees, 0–360).
+        library: the model library (default :func:`carbody.library.load_library`).
+        image_size: (width, height) px; keypoints off the image are refused.
+        wheelbase_mm: real wheelbase; default the fitted mix of the templates' own.
+        method: ``"gauss"`` (Gaussian shape prior, default) or ``"paper"`` (plain ΣH = 1, 0 ≤ H ≤ 1).
+        prior_weight: λ of ``"gauss"``.
+        refine: refine azimuth, elevation and roll around ``view``.
+        name: the car's name (STEP product).
+    Raises:
+        KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
+        AngleError: a view outside 0–360°.
+        FitError: an unknown method or a bad wheelbase, or keypoints no model can match.
+    """
+    from carbody.fit.camera import check_azimuth
+
+    if not isinstance(view, View):
+        view = View(check_azimuth(view))
+    else:
+        check_azimuth(view.azimuth)
+    if method not in METHODS:
+        raise FitError(f"unknown fit method {method!r} (known: {', '.join(METHODS)})")
+    if wheelbase_mm is not None and not (np.isfinite(wheelbase_mm) and 500 <= wheelbase_mm <= 10_000):
+        raise FitError(f"wheelbase {wheelbase_mm!r} mm is not a car's (500–10000 mm)")
+    if library is None:
+        from carbody.library import load_library
+
+        library = load_library()
+    topo = load_topology()
+    slots, uv = check_keypoints(keypoints, image_size, topo)
+    model = prepared(library, method)
+    idx = topo.keypoint_point_indices
+
+    if method == "paper":
+        state = {"support": None}
+
+        def solve_at(v: View) -> MixSolution:
+            sol = solve_simplex(model, slots, uv, v, warm_support=state["support"])
+            state["support"] = sol.support
+            return sol
+    else:
+        def solve_at(v: View) -> MixSolution:
+            return solve_gauss(model, idx, slots, uv, v, prior_weight)
+
+    if refine:
+        refined, sol = refine_view(solve_at, view)
+    else:
+        refined, sol = view, solve_at(view)
+    refined = View(float(refined.azimuth) % 360.0, float(refined.elevation), float(refined.roll))
+    if sol.shape is None:
+        sol.shape = library.S[:, sol.support] @ sol.H[sol.support]
+    if wheelbase_mm is None:
+        if sol.H is None:
+            raise FitError("no wheelbase given and the mix's weights are unknown")
+        wheelbase_mm = float(sol.H @ library.model_wheelbase_mm)
+    points = sol.shape.reshape(-1, 3) * (wheelbase_mm / NORMALISED_WHEELBASE)
+    return FitResult(wireframe=Wireframe(name, points), view=refined, given_view=view, solution=sol,
+                     slots=slots, uv=uv, wheelbase_mm=float(wheelbase_mm), method=method,
+                     library=library)

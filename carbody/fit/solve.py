@@ -1,0 +1,369 @@
+"""The weight solve (paper III.D, eqs. 2–4): image keypoints → library mix H → new model S·H.
+
+The image keypoints z (pixels) are the projection of the mixed model, s·K·H + t, with the image's
+unknown scale s and offset t. Two methods:
+
+- ``"paper"``: the paper's constrained least squares, ΣH = 1, 0 ≤ H ≤ 1. Writing G = s·H turns
+  the constraints into G ≥ 0 (then s = ΣG, H = G/ΣG, and H ≤ 1 follows), and centring both sides
+  on their keypoint mean removes t: min ‖Kc·G − zc‖, G ≥ 0, an exact reformulation solved as
+  non-negative least squares by an active set on a working set of models. The full library's
+  gradient is one pass over its (35·3, N) keypoint rows, so a million models cost a few
+  matrix–vector passes, never an N × N matrix or the full 840-row S.
+- ``"gauss"`` (default): a Gaussian shape prior. The library's models span a shape space with a
+  mean m and principal directions B (scaled to unit variance); the new model is m + B·a, an
+  affine mix of the library (ΣH = 1, weights may be negative), with a MAP estimate
+  min ‖reprojection‖² + λ‖a‖². With c = s·a and g = s the problem is linear in (g, c), so one
+  small (1 + q)² solve replaces the NNLS. Directions the view cannot see (x on a side view, y on
+  a front view) go to their most likely value given the visible ones instead of to whichever
+  library corner happens to fit, and a car outside the library's convex hull (a leave-one-out
+  template) can still be reached. It wins on the leave-one-out benchmark (BENCHMARKS.md).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from carbody.errors import FitError
+from carbody.fit.camera import View, view_rotation
+from carbody.fit.keypoints_io import KeypointSlot
+
+#: Default prior weight λ of the ``"gauss"`` method, dimensionless (keypoint residuals are
+#: measured relative to the car's spread in the image); chosen on the leave-one-out benchmark
+#: (``benchmarks/bench_fit_accuracy.py --sweep``).
+DEFAULT_PRIOR_WEIGHT = 1e-5
+
+#: Principal components kept in the shape model: enough for this fraction of the variance.
+SHAPE_ENERGY = 0.99999
+
+#: Methods of :func:`solve_mix`, default first.
+METHODS = ("gauss", "paper")
+
+#: Libraries up to this size are solved in one active-set run over every model.
+FULL_SET_MAX = 6000
+
+#: Models added to the working set per pass (most violated optimality conditions first).
+WORKING_SET_GROWTH = 400
+
+
+@dataclass
+class KeypointBasis:
+    """The library's keypoint rows, prepared once for many ``"paper"`` solves.
+
+    Attributes:
+        X: (35, 3, N) float, each model's 35 left keypoints, normalised units (float32 is fine
+            for very large libraries).
+        size: RMS distance of the mean model's keypoints from their centroid, normalised units.
+    """
+
+    X: np.ndarray
+    size: float
+
+    @property
+    def n_models(self) -> int:
+        return self.X.shape[2]
+
+    @classmethod
+    def from_shapes(cls, S: np.ndarray, point_indices: np.ndarray, dtype=np.float64) -> "KeypointBasis":
+        """Build from (840, N) normalised shape vectors and the (35,) keypoint rows."""
+        X = S.reshape(-1, 3, S.shape[1])[point_indices]
+        return cls.from_keypoints(X.astype(dtype, copy=False))
+
+    @classmethod
+    def from_keypoints(cls, X: np.ndarray) -> "KeypointBasis":
+        """Build from (35, 3, N) keypoint coordinates (normalised units)."""
+        m = X.mean(axis=2, dtype=np.float64)
+        size = float(np.sqrt(np.mean(np.sum((m - m.mean(axis=0)) ** 2, axis=1))))
+        return cls(X=X, size=size)
+
+
+@dataclass
+class ShapeModel:
+    """The library as a Gaussian shape space (``"gauss"`` method).
+
+    Attributes:
+        mean: (840,) float, mean shape vector, normalised units.
+        basis: (840, q) float, principal directions scaled by their standard deviation, so a
+            shape m + basis·a has a ~ N(0, I) over the library.
+        size: as :attr:`KeypointBasis.size`.
+        to_weights: (N, q) float or None, maps a to affine library weights H − 1/N (reports).
+    """
+
+    mean: np.ndarray
+    basis: np.ndarray
+    size: float
+    to_weights: np.ndarray | None = None
+
+    @classmethod
+    def from_shapes(cls, S: np.ndarray, point_indices: np.ndarray, with_weights: bool = True) -> "ShapeModel":
+        """Principal components of (840, N) normalised shapes (covariance in column chunks)."""
+        n = S.shape[1]
+        mean = S.mean(axis=1, dtype=np.float64)
+        cov = np.zeros((S.shape[0], S.shape[0]))
+        for a in range(0, n, 100_000):
+            block = S[:, a:a + 100_000].astype(np.float64) - mean[:, None]
+            cov += block @ block.T
+        cov /= n
+        evals, evecs = np.linalg.eigh(cov)
+        evals, evecs = np.clip(evals[::-1], 0, None), evecs[:, ::-1]
+        q = int(np.searchsorted(np.cumsum(evals) / evals.sum(), SHAPE_ENERGY)) + 1
+        basis = evecs[:, :q] * np.sqrt(evals[:q])
+        to_w = None
+        if with_weights:  # H = 1/N + Dᵀ·U·Λ^(-1/2)·a / N reproduces m + basis·a exactly
+            to_w = ((S.T.astype(np.float64) @ (evecs[:, :q] / np.sqrt(evals[:q])))
+                    - mean @ (evecs[:, :q] / np.sqrt(evals[:q]))) / n
+        m = mean.reshape(-1, 3)[point_indices]
+        size = float(np.sqrt(np.mean(np.sum((m - m.mean(axis=0)) ** 2, axis=1))))
+        return cls(mean=mean, basis=basis, size=size, to_weights=to_w)
+
+
+@dataclass
+class MixSolution:
+    """Result of one solve at a fixed view.
+
+    Attributes:
+        shape: (840,) float, the new model's shape vector, normalised units (S·H); None when
+            :func:`solve_simplex` was not given S.
+        H: (N,) float, library weights, ΣH = 1 (``"paper"``: 0 ≤ H ≤ 1 and sparse).
+        scale: s, pixels per normalised unit.
+        offset: (2,) float, (u0, v0) pixels of the car-frame origin.
+        residual_px: (k,) float, reprojection distance per keypoint, pixels.
+        cost: the minimised objective (data + prior), dimensionless.
+        residual_vector: the stacked residuals whose squared norm is ``cost``.
+        support: models with positive weight (``"paper"``; used to warm-start the next solve).
+    """
+
+    shape: np.ndarray | None
+    H: np.ndarray | None
+    scale: float
+    offset: np.ndarray
+    residual_px: np.ndarray
+    cost: float
+    residual_vector: np.ndarray
+    support: np.ndarray | None = None
+
+
+def nnls_active_set(A: np.ndarray, b: np.ndarray, passive: np.ndarray | None = None,
+                    tol: float = 1e-10, max_iter: int | None = None) -> np.ndarray:
+    """min ‖A·x − b‖ subject to x ≥ 0 (Lawson–Hanson active set).
+
+    Args:
+        A: (m, n) float.
+        b: (m,) float.
+        passive: optional (p,) int, columns to start from (a warm start).
+        tol: stop when no zero column's gradient exceeds ``tol`` × the largest initial one.
+    Returns:
+        (n,) float, x ≥ 0.
+    """
+    m, n = A.shape
+    x = np.zeros(n)
+    P = np.zeros(n, dtype=bool)
+    if passive is not None and len(passive):
+        P[np.asarray(passive)] = True
+        x = _feasible_start(A, b, P)
+    w = A.T @ (b - A @ x)
+    scale = max(float(np.max(np.abs(A.T @ b))), 1e-300)
+    max_iter = max_iter or 3 * max(m, 10) + 2 * (0 if passive is None else len(passive))
+    for _ in range(max_iter):
+        w_free = np.where(P, -np.inf, w)
+        j = int(np.argmax(w_free))
+        if not w_free[j] > tol * scale:
+            break
+        P[j] = True
+        while True:
+            idx = np.flatnonzero(P)
+            z = _lstsq(A[:, idx], b)
+            if np.all(z > 0):
+                x[:] = 0.0
+                x[idx] = z
+                break
+            xi = x[idx]
+            neg = z <= 0
+            if neg.sum() == 1 and idx[neg][0] == j and xi[neg][0] == 0:
+                P[j] = False  # numerically dependent column: it cannot enter
+                break
+            alpha = np.min(xi[neg] / (xi[neg] - z[neg]))
+            x[idx] = xi + alpha * (z - xi)
+            drop = idx[(x[idx] <= 1e-14 * max(1.0, np.max(x[idx])))]
+            P[drop] = False
+            x[~P] = 0.0
+            if not P.any():
+                break
+        if not P[j] and x[j] == 0 and w_free[j] > tol * scale and np.flatnonzero(P).size == 0:
+            break
+        w = A.T @ (b - A[:, P] @ x[P])
+    return x
+
+
+def _lstsq(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Least squares on a small dense block (normal equations, QR fallback)."""
+    g = A.T @ A
+    try:
+        c = np.linalg.cholesky(g + 1e-13 * np.trace(g) / len(g) * np.eye(len(g)))
+        y = np.linalg.solve(c, A.T @ b)
+        return np.linalg.solve(c.T, y)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
+def _feasible_start(A: np.ndarray, b: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """A feasible x supported on (a subset of) P: LS on P, dropping negatives until none."""
+    x = np.zeros(A.shape[1])
+    for _ in range(int(P.sum()) + 1):
+        idx = np.flatnonzero(P)
+        if not len(idx):
+            break
+        z = _lstsq(A[:, idx], b)
+        if np.all(z > 0):
+            x[idx] = z
+            break
+        P[idx[z <= 0]] = False
+    return x
+
+
+def projection_rows(slots: list[KeypointSlot], view: View) -> np.ndarray:
+    """(2k, 35, 3) float: row 2i (2i+1) maps the 35 keypoints to u (v, down) of slot i, scale 1."""
+    rot = view_rotation(view)
+    M = np.zeros((2 * len(slots), 35, 3))
+    for i, slot in enumerate(slots):
+        kp = slot.keypoint_id - 1
+        M[2 * i, kp] = rot[1] * slot.sign
+        M[2 * i + 1, kp] = -rot[2] * slot.sign
+    return M
+
+
+def _centred(slots: list[KeypointSlot], uv: np.ndarray, view: View):
+    """Projection rows and image coordinates centred per image axis (this removes the offset)."""
+    M = projection_rows(slots, view)
+    Mc = M.copy()
+    Mc[0::2] -= M[0::2].mean(axis=0)
+    Mc[1::2] -= M[1::2].mean(axis=0)
+    z = np.asarray(uv, dtype=float)
+    zc = (z - z.mean(axis=0)).ravel()
+    rho = float(np.sqrt(np.mean(zc**2)))
+    if not rho > 0:
+        raise FitError("the keypoints are coincident")
+    return M, Mc.reshape(len(M), -1), z, zc / rho, rho
+
+
+def _image_fit(M: np.ndarray, keypoints: np.ndarray, z: np.ndarray, scale: float):
+    """Offset, predicted pixels and residual of a model's keypoints (35, 3) at a given scale."""
+    proj = np.einsum("rkc,kc->r", M, keypoints).reshape(-1, 2)  # (u − u0, v − v0) at scale 1
+    offset = z.mean(axis=0) - scale * proj.mean(axis=0)
+    pred = offset + scale * proj
+    return offset, pred
+
+
+def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarray, view: View,
+                  shapes: np.ndarray | None = None, warm_support: np.ndarray | None = None) -> MixSolution:
+    """The paper's constrained solve (ΣH = 1, 0 ≤ H ≤ 1) with the image's scale and offset.
+
+    Args:
+        basis: the library's keypoint rows.
+        slots: the k annotated keypoints; uv: (k, 2) float, their pixels.
+        view: the camera.
+        shapes: (840, N) float, the library's S, to return the new model S·H (else only its
+            keypoints are filled in ``shape``).
+        warm_support: models to start the active set from (a previous solution's support).
+    Raises:
+        FitError: keypoints no library mix reproduces at a positive image scale.
+    """
+    M, Mc, z, b, rho = _centred(slots, uv, view)
+    rows = Mc / basis.size
+    G = _solve_working_set(basis, rows, np.zeros(len(rows)), b, warm_support)
+    total = G.sum()
+    if not total > 0:
+        raise FitError("no library mix reproduces these keypoints at a positive image scale "
+                       "(check the view angle and which side each keypoint name is on)")
+    H = G / total
+    support = np.flatnonzero(H > 0)
+    kp = np.tensordot(basis.X[:, :, support].astype(np.float64), H[support], axes=([2], [0]))
+    scale = total * rho / basis.size
+    offset, pred = _image_fit(M, kp, z, scale)
+    rvec = ((pred - z) / rho).ravel()
+    shape = shapes[:, support] @ H[support] if shapes is not None else None
+    return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
+                       residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
+                       residual_vector=rvec, support=support)
+
+
+def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[KeypointSlot],
+                uv: np.ndarray, view: View, prior_weight: float = DEFAULT_PRIOR_WEIGHT) -> MixSolution:
+    """MAP shape under the library's Gaussian shape prior, with the image's scale and offset.
+
+    Args:
+        model: the library's shape model.
+        point_indices: (35,) int, control-point row of each keypoint.
+        slots, uv, view: as :func:`solve_simplex`.
+        prior_weight: λ.
+    """
+    M, Mc, z, b, rho = _centred(slots, uv, view)
+    q = model.basis.shape[1]
+    mk = model.mean.reshape(-1, 3)[point_indices].ravel()
+    Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
+    A = np.hstack([(Mc @ mk)[:, None], Mc @ Bk]) / model.size
+    reg = np.sqrt(prior_weight) * np.hstack([np.zeros((q, 1)), np.eye(q)])
+    AA = np.vstack([A, reg])
+    bb = np.concatenate([b, np.zeros(q)])
+    x = np.linalg.lstsq(AA, bb, rcond=None)[0]
+    g, c = x[0], x[1:]
+    if not g > 1e-9:
+        raise FitError("no shape reproduces these keypoints at a positive image scale "
+                       "(check the view angle and which side each keypoint name is on)")
+    a = c / g
+    shape = model.mean + model.basis @ a
+    scale = g * rho / model.size
+    offset, pred = _image_fit(M, shape.reshape(-1, 3)[point_indices], z, scale)
+    rvec = np.concatenate([((pred - z) / rho).ravel(), reg[:, 1:] @ c])
+    H = None
+    if model.to_weights is not None:
+        H = 1.0 / len(model.to_weights) + model.to_weights @ a
+    return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
+                       residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
+                       residual_vector=rvec)
+
+
+def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, offs: np.ndarray, b: np.ndarray,
+                       warm: np.ndarray | None) -> np.ndarray:
+    """NNLS over all models of ``basis`` with matrix A = rows·X − offs·1ᵀ (never built whole).
+
+    Args:
+        rows: (m, 105) float. offs: (m,) float. b: (m,) float.
+    Returns:
+        (N,) float, G ≥ 0.
+    """
+    n = basis.n_models
+    flat = basis.X.reshape(-1, n)
+
+    def columns(idx: np.ndarray) -> np.ndarray:
+        return rows @ flat[:, idx].astype(np.float64) - offs[:, None]
+
+    if n <= FULL_SET_MAX:
+        A = columns(np.arange(n))
+        return nnls_active_set(A, b, passive=warm)
+    # Gradient of ½‖A·G − b‖² over every model: Aᵀ r = Xᵀ(rowsᵀ r) − (offs·r).
+    def gradient(r: np.ndarray) -> np.ndarray:
+        c = (rows.T @ r).astype(flat.dtype)
+        return (c @ flat).astype(np.float64) - offs @ r
+
+    g0 = gradient(-b)
+    seed = np.argsort(g0)[:WORKING_SET_GROWTH]
+    stride = np.arange(0, n, max(1, n // 2000))
+    W = np.unique(np.concatenate([seed, stride] + ([np.asarray(warm)] if warm is not None else [])))
+    G = np.zeros(n)
+    for _ in range(50):
+        A = columns(W)
+        gw = nnls_active_set(A, b, passive=np.flatnonzero(G[W] > 0) if G.any() else None)
+        G[:] = 0.0
+        G[W] = gw
+        r = A @ gw - b
+        g = gradient(r)
+        tol = 1e-9 * max(float(np.max(np.abs(g0))), 1e-300)
+        g[W] = np.inf
+        viol = np.flatnonzero(g < -tol)
+        if not len(viol):
+            break
+        add = viol[np.argsort(g[viol])[:WORKING_SET_GROWTH]]
+        keep = W[gw > 0]
+        W = np.unique(np.concatenate([keep, add, W]))
+    return G

@@ -1,0 +1,129 @@
+"""Which keypoints a view can see, from the wireframe's geometry (paper III.C).
+
+A keypoint is seen when one of the regions that meet at it faces the camera (its outward normal
+has a positive component toward the camera, a grazing region counts as the silhouette) and no
+nearer facing region covers it in the image. Regions are the topology's 13 closed loops on each
+half; their normals come from the loop polygon (Newell's method), made outward by pointing away
+from the body's centre line.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from carbody.fit.camera import View, camera_direction, view_rotation
+from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
+from carbody.topology import POINTS_PER_CURVE, Topology, load_topology
+
+#: A region faces the camera when n·d exceeds this (slightly negative: silhouettes count).
+FACING_COS = -0.05
+
+#: A keypoint is hidden only when it lies this far inside a nearer region's outline and that
+#: region lies this far in front of it (fractions of the body length).
+OCCLUSION_MARGIN = 0.02
+
+#: Samples per curve for region outlines.
+_SAMPLES = 8
+
+
+def _region_loops(control_points: np.ndarray, topo: Topology) -> list[np.ndarray]:
+    """(n, 3) outline per region of the left half, in loop order."""
+    from carbody.templates.drawing import sample_curves
+
+    curves = sample_curves(control_points, _SAMPLES)
+    loops = []
+    for region in topo.regions:
+        parts = [curves[ci][::-1] if rev else curves[ci] for ci, rev in region.loop]
+        loops.append(np.concatenate([p[:-1] for p in parts]))
+    return loops
+
+
+def _newell_normal(loop: np.ndarray) -> np.ndarray:
+    nxt = np.roll(loop, -1, axis=0)
+    n = np.array([np.sum((loop[:, 1] - nxt[:, 1]) * (loop[:, 2] + nxt[:, 2])),
+                  np.sum((loop[:, 2] - nxt[:, 2]) * (loop[:, 0] + nxt[:, 0])),
+                  np.sum((loop[:, 0] - nxt[:, 0]) * (loop[:, 1] + nxt[:, 1]))])
+    return n / max(np.linalg.norm(n), 1e-12)
+
+
+def _inside(poly: np.ndarray, q: np.ndarray) -> tuple[bool, float]:
+    """Whether 2D point q lies inside polygon poly (n, 2), and its distance to the outline."""
+    a, b = poly, np.roll(poly, -1, axis=0)
+    crosses = ((a[:, 1] > q[1]) != (b[:, 1] > q[1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_at = a[:, 0] + (q[1] - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    inside = bool(np.count_nonzero(crosses & (x_at > q[0])) % 2)
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+    dist = float(np.min(np.linalg.norm(a + t[:, None] * ab - q, axis=1)))
+    return inside, dist
+
+
+def visible_keypoints(view: View, control_points: np.ndarray | None = None,
+                      topology: Topology | None = None) -> list[str]:
+    """Names of the keypoints (both halves) the view can see, in id order, left before right.
+
+    Args:
+        view: the camera.
+        control_points: (280, 3) float, the car (any unit); default the library's mean model.
+    """
+    topo = topology or load_topology()
+    if control_points is None:
+        from carbody.library import load_library
+
+        control_points = load_library().S.mean(axis=1).reshape(-1, 3)
+    cp = np.asarray(control_points, dtype=float)
+    d = camera_direction(view)
+    rot = view_rotation(view)
+    size = float(np.ptp(cp[:, 1]))
+    centre_line = np.array([0.0, cp[:, 1].mean(), cp[:, 2].mean()])
+
+    # Regions of both halves: outline (n, 3), outward normal, junction names.
+    regions = []
+    left_loops = _region_loops(cp, topo)
+    for region, loop in zip(topo.regions, left_loops):
+        n = _newell_normal(loop)
+        if n @ (loop.mean(axis=0) - centre_line) < 0:
+            n = -n
+        junctions = set(topo.region_junctions(region))
+        for sign in (np.ones(3), np.array([-1.0, 1.0, 1.0])):
+            regions.append((loop * sign, n * sign, junctions, sign[0] < 0))
+
+    facing = [r for r in regions if r[1] @ d > FACING_COS]
+    outlines = [((r[0] @ rot[1:].T), r) for r in facing]
+    seen = []
+    for slot in keypoint_slots(topo).values():
+        p = cp[slot.point_index] * slot.sign
+        mine = [r for r in facing if r[3] == slot.is_mirror and _junction_of(slot, topo) in r[2]]
+        if not mine:
+            continue
+        q = rot[1:] @ p
+        hidden = False
+        for poly, r in outlines:
+            if r[3] == slot.is_mirror and _junction_of(slot, topo) in r[2]:
+                continue
+            inside, dist = _inside(poly, q)
+            if not inside or dist < OCCLUSION_MARGIN * size:
+                continue
+            # Depth of the region's plane along the ray through p toward the camera.
+            nd = r[1] @ d
+            if abs(nd) < 1e-6:
+                continue
+            t = r[1] @ (r[0].mean(axis=0) - p) / nd
+            if t > OCCLUSION_MARGIN * size:
+                hidden = True
+                break
+        if not hidden:
+            seen.append(slot.name)
+    return seen
+
+
+def _junction_of(slot: KeypointSlot, topo: Topology) -> str:
+    """The junction name of a slot (mirror names drop their suffix)."""
+    return topo.keypoints[slot.keypoint_id - 1].name
+
+
+def visible_slots(view: View, control_points: np.ndarray | None = None,
+                  topology: Topology | None = None) -> list[KeypointSlot]:
+    """:func:`visible_keypoints` as slots."""
+    slots = keypoint_slots(topology)
+    return [slots[n] for n in visible_keypoints(view, control_points, topology)]
