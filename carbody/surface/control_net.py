@@ -417,22 +417,24 @@ def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray) -> list[
     for k in range(K):
         # E_k's end lengths: geometric mean of the two patches' side lengths at the rib, so that
         # σ(u) stays near 1 and a patch with one short side does not fold its control net
-        lb = np.sqrt(np.prod([v[0] for v in (after[k:k + 1] + before[k - 1:k] if k else after[:1])]))
-        la = np.sqrt(np.prod([v[1] for v in (after[k:k + 1] + before[k - 1:k] if k else after[:1])]))
-        if k == K - 1:
-            lb, la = before[-1]
+        near = after[k:k + 1] + before[k - 1:k] if k else after[:1]
+        lb = float(np.prod([v[0] for v in near]) ** (1 / len(near)))
+        la = float(np.prod([v[1] for v in near]) ** (1 / len(near)))
         e0 = lb * _side_tangent(outline.side_b, ribs[k, 1])
         e2 = la * _side_tangent(outline.side_a, ribs[k, 0])
         m = mids[min(k + 1, K - 1)] - mids[max(k - 1, 0)]
+        # E_k(1/2)'s length: the ribs' spacing at their inner control points (geometric mean of
+        # the two neighbours), so the inner rows share out the real distance between ribs
         m *= (la + lb) / 2 / np.linalg.norm(m)
         e1 = 2 * m - (e0 + e2) / 2
         if k in (0, K - 1) and np.abs(rows[k][:, 0]).max() < 1e-6 and abs(e0[0]) > 0.999 * lb \
                 and abs(e2[0]) > 0.999 * la:
             e1 = (e0 + e2) / 2  # an end curve on the symmetry plane: cross it square
         elif on_symmetry_plane(outline.side_b, ribs[k, 1]) or on_symmetry_plane(outline.side_a, ribs[k, 0]):
+            # stay in the plane of x and the centre line; along the centre line keep the centre
+            # line's own spacing, as the rib's first control point sits square across from it
             t = e0 if on_symmetry_plane(outline.side_b, ribs[k, 1]) else e2
-            basis = np.linalg.qr(np.stack([x, t], axis=1))[0]
-            e1 = basis @ (basis.T @ e1)  # stay in the plane of x and the centre line
+            e1 = (e1 @ x) * x + t
         fields.append((np.array([e0, e1, e2]), lb, la))
     faces = []
     for k in range(K - 1):
