@@ -39,6 +39,9 @@ from carbody.surface.skeleton import OptimalPair
 #: in the skeleton but are not used as ribs.
 MAX_RIB_SKEW = 0.2
 
+#: A side turning by more than this (degrees) at a rib's end is a corner.
+CORNER_DEG = 0.5
+
 #: Largest factor by which a face's side lengths ratio (A over B) may differ from the region's.
 MAX_FAN = 2.5
 
@@ -315,6 +318,15 @@ def _side_tangent(chain: Chain, s: float) -> np.ndarray:
     return d / np.linalg.norm(d)
 
 
+def _one_sided_tangent(chain: Chain, s: float, after: bool) -> np.ndarray:
+    """Unit tangent of a chain at s from the piece after (or before) s."""
+    j = int(round(s))
+    if abs(s - j) < 1e-9 and 0 < j < chain.n:
+        d = bezier_derivs(chain.poles[j], [0.0])[0] if after else bezier_derivs(chain.poles[j - 1], [1.0])[0]
+        return d / np.linalg.norm(d)
+    return _side_tangent(chain, s)
+
+
 def _rib_frame(p0: np.ndarray, p3: np.ndarray, along: np.ndarray, outward: np.ndarray):
     """(length, (3, 3) rows x̂ chord, ŵ out of the surface, ŷ = ŵ × x̂) of a rib."""
     chord = p3 - p0
@@ -422,6 +434,16 @@ def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray) -> list[
         la = float(np.prod([v[1] for v in near]) ** (1 / len(near)))
         e0 = lb * _side_tangent(outline.side_b, ribs[k, 1])
         e2 = la * _side_tangent(outline.side_a, ribs[k, 0])
+        # where a side turns a corner no layout is G1 across the rib: each patch then follows
+        # its own side's tangent (its exact sub-arc) instead of the bisector
+        b_turn = side_turn_deg(outline.side_b, ribs[k, 1]) >= CORNER_DEG
+        a_turn = side_turn_deg(outline.side_a, ribs[k, 0]) >= CORNER_DEG
+        one_sided = {}
+        for tag, side in (("after", 0), ("before", 1)):
+            if b_turn or a_turn:
+                tb = _one_sided_tangent(outline.side_b, ribs[k, 1], side == 0) if b_turn else e0 / lb
+                ta = _one_sided_tangent(outline.side_a, ribs[k, 0], side == 0) if a_turn else e2 / la
+                one_sided[tag] = (lb * tb, la * ta)
         m = mids[min(k + 1, K - 1)] - mids[max(k - 1, 0)]
         # E_k(1/2)'s length: the ribs' spacing at their inner control points (geometric mean of
         # the two neighbours), so the inner rows share out the real distance between ribs
@@ -435,13 +457,16 @@ def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray) -> list[
             # line's own spacing, as the rib's first control point sits square across from it
             t = e0 if on_symmetry_plane(outline.side_b, ribs[k, 1]) else e2
             e1 = (e1 @ x) * x + t
-        fields.append((np.array([e0, e1, e2]), lb, la))
+        field_k = {"after": (np.array([e0, e1, e2]), lb, la), "before": (np.array([e0, e1, e2]), lb, la)}
+        for tag, (f0, f2) in one_sided.items():
+            field_k[tag] = (np.array([f0, e1, f2]), lb, la)
+        fields.append(field_k)
     faces = []
     for k in range(K - 1):
         (sub_b, ib, tb0, tb1), (sub_a, ia, ta0, ta1) = subs[k]
-        e, lb, la = fields[k]
+        e, lb, la = fields[k]["after"]
         plus = _cross(after[k][0] / lb, after[k][1] / la, e)
-        e, lb, la = fields[k + 1]
+        e, lb, la = fields[k + 1]["before"]
         minus = _cross(before[k][0] / lb, before[k][1] / la, e)
         grid = np.array([rows[k], rows[k] + plus / 3, rows[k + 1] - minus / 3, rows[k + 1]])  # [v, u]
         grid[:, 0] = sub_b
