@@ -157,7 +157,12 @@ def main() -> int:
         print(f"{row['name']:32s} total {t3 - t0:5.2f} s  faces {body.report['shell']['faces']}  "
               f"valid {body.report['shell']['valid']}", file=sys.stderr)
 
-    print(f"\n### Surfaces (`benchmarks/bench_surface.py`), {len(rows)} templates\n")
+    import os
+
+    load = os.getloadavg()[0]
+    print(f"\n## Surfaces (`benchmarks/bench_surface.py`)\n")
+    print(f"{len(rows)} templates; 2-core machine, load average {load:.1f} during the run "
+          f"(other jobs share the cores).\n")
     print("Wireframe STEP -> body STEP, seconds per body (warm process):\n")
     print("| stage | median | max |\n|---|---|---|")
     order = ["read_s", "skeleton_s", "control_nets_s", "faces_s", "sewing_s", "checks_s", "write_step_s"]

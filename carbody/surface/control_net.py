@@ -22,6 +22,18 @@ E_k shared by both patches meeting at rib k. Both patches' cross-derivatives at 
 positive multiples of the same E_k(u), so their normals agree all along the rib: G1 inside a
 region wherever the wireframe sides themselves are G1.
 
+Our readings where the paper is silent (each a named constant below):
+
+* the DTW path is blended (:data:`DTW_BLEND`) towards the arc-length-proportional match so it
+  is strictly monotone and two junctions never share a partner;
+* an optimal pair that cuts a square-ish part diagonally (its ends at arc-length fractions more
+  than :data:`MAX_RIB_SKEW` apart) or that fans strongly against a neighbouring rib
+  (:data:`MAX_FAN`) stays in the skeleton but is not made a rib;
+* ribs leave the symmetry plane square (along x), with the E field in the plane of x and the
+  centre line, so each region meets its mirror G1;
+* where a side turns a corner (:data:`CORNER_DEG`) each patch follows its own side's tangent:
+  no layout is G1 across such a rib, and the report lists those ribs apart.
+
 Everything here is numpy; no OCCT.
 """
 from __future__ import annotations
@@ -47,10 +59,6 @@ MAX_FAN = 2.5
 
 #: Weight of the arc-length-proportional match blended into the DTW correspondence.
 DTW_BLEND = 0.3
-
-#: Face sides, in wire order: v = 0 (u 0 -> 1), u = 1 (v 0 -> 1), v = 1, u = 0.
-SIDES = ("v0", "u1", "v1", "u0")
-
 
 @dataclass
 class SideRef:

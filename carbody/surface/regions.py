@@ -11,6 +11,7 @@ Everything here is numpy/shapely; no OCCT.
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 import shapely
 
