@@ -31,12 +31,15 @@ from carbody.fit.keypoints_io import KeypointSlot
 #: Default prior weight λ of the ``"gauss"`` method, dimensionless (keypoint residuals are
 #: measured relative to the car's spread in the image); chosen on the leave-one-out benchmark
 #: (``benchmarks/bench_fit_accuracy.py --sweep``).
-DEFAULT_PRIOR_WEIGHT = 1e-5
+DEFAULT_PRIOR_WEIGHT = 1e-4
 
 #: Principal components kept in the shape model: enough for this fraction of the variance.
 SHAPE_ENERGY = 0.99999
 
-#: Methods of :func:`solve_mix`, default first.
+#: Most principal components the shape model computes.
+MAX_COMPONENTS = 200
+
+#: Fit methods, default first.
 METHODS = ("gauss", "paper")
 
 #: Libraries up to this size are solved in one active-set run over every model.
@@ -104,9 +107,14 @@ class ShapeModel:
             block = S[:, a:a + 100_000].astype(np.float64) - mean[:, None]
             cov += block @ block.T
         cov /= n
-        evals, evecs = np.linalg.eigh(cov)
-        evals, evecs = np.clip(evals[::-1], 0, None), evecs[:, ::-1]
-        q = int(np.searchsorted(np.cumsum(evals) / evals.sum(), SHAPE_ENERGY)) + 1
+        from scipy.linalg import eigh
+
+        # Only the leading directions matter (the expansions are low rank): a partial eigh.
+        top = min(len(cov), MAX_COMPONENTS)
+        evals, evecs = eigh(cov, subset_by_index=[len(cov) - top, len(cov) - 1], driver="evr")
+        total = float(np.trace(cov))
+        evals, evecs = np.clip(evals[::-1], 1e-300, None), evecs[:, ::-1]
+        q = min(int(np.searchsorted(np.cumsum(evals) / total, SHAPE_ENERGY)) + 1, top)
         basis = evecs[:, :q] * np.sqrt(evals[:q])
         to_w = None
         if with_weights:  # H = 1/N + Dᵀ·U·Λ^(-1/2)·a / N reproduces m + basis·a exactly
@@ -301,26 +309,55 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     q = model.basis.shape[1]
     mk = model.mean.reshape(-1, 3)[point_indices].ravel()
     Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
-    A = np.hstack([(Mc @ mk)[:, None], Mc @ Bk]) / model.size
-    reg = np.sqrt(prior_weight) * np.hstack([np.zeros((q, 1)), np.eye(q)])
-    AA = np.vstack([A, reg])
-    bb = np.concatenate([b, np.zeros(q)])
-    x = np.linalg.lstsq(AA, bb, rcond=None)[0]
-    g, c = x[0], x[1:]
-    if not g > 1e-9:
+    a, g = _map_coefficients((Mc @ mk) / model.size, (Mc @ Bk) / model.size, b, prior_weight)
+    if not g > 0:
         raise FitError("no shape reproduces these keypoints at a positive image scale "
                        "(check the view angle and which side each keypoint name is on)")
-    a = c / g
     shape = model.mean + model.basis @ a
     scale = g * rho / model.size
     offset, pred = _image_fit(M, shape.reshape(-1, 3)[point_indices], z, scale)
-    rvec = np.concatenate([((pred - z) / rho).ravel(), reg[:, 1:] @ c])
+    rvec = np.concatenate([((pred - z) / rho).ravel(), np.sqrt(prior_weight) * a])
     H = None
     if model.to_weights is not None:
         H = 1.0 / len(model.to_weights) + model.to_weights @ a
     return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
                        residual_vector=rvec)
+
+
+def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float) -> tuple[np.ndarray, float]:
+    """argmin over a, g > 0 of ‖g·(am + AB·a) − b‖² + λ‖a‖² (the MAP shape and scale).
+
+    For a fixed scale g the shape coefficients are a ridge solve, done for every g at once in
+    the eigenbasis of ABᵀAB; the scale is then a 1-D minimisation (grid, then bounded Brent).
+    Args:
+        am: (m,) the mean shape's centred projection; AB: (m, q) the basis'; b: (m,) the image.
+    Returns:
+        (a (q,), g).
+    """
+    from scipy.optimize import minimize_scalar
+
+    e, V = np.linalg.eigh(AB.T @ AB)
+    ABV = AB @ V
+    y1, y2 = ABV.T @ b, ABV.T @ am
+
+    def coeffs(g):
+        return g * (y1 - g * y2) / (g * g * e + lam)
+
+    def cost(g):
+        av = coeffs(g)
+        r = g * am - b + g * (ABV @ av)
+        return float(r @ r + lam * av @ av)
+
+    # The unregularised scale of the mean shape brackets the answer.
+    g0 = max(float(am @ b) / max(float(am @ am), 1e-300), 1e-6)
+    grid = g0 * np.geomspace(0.1, 10.0, 41)
+    costs = [cost(g) for g in grid]
+    i = int(np.argmin(costs))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    g = float(minimize_scalar(cost, bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-10 * grid[i]}).x)
+    return V @ coeffs(g), g
 
 
 def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, offs: np.ndarray, b: np.ndarray,

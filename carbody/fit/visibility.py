@@ -14,8 +14,9 @@ from carbody.fit.camera import View, camera_direction, view_rotation
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
 from carbody.topology import POINTS_PER_CURVE, Topology, load_topology
 
-#: A region faces the camera when n·d exceeds this (slightly negative: silhouettes count).
-FACING_COS = -0.05
+#: A region faces the camera when n·d exceeds this: a panel seen edge-on (a door from straight
+#: ahead) has its points on the silhouette, where nobody can mark them.
+FACING_COS = 0.1
 
 #: A keypoint is hidden only when it lies this far inside a nearer region's outline and that
 #: region lies this far in front of it (fractions of the body length).
@@ -93,13 +94,18 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
     seen = []
     for slot in keypoint_slots(topo).values():
         p = cp[slot.point_index] * slot.sign
-        mine = [r for r in facing if r[3] == slot.is_mirror and _junction_of(slot, topo) in r[2]]
-        if not mine:
+        junction = _junction_of(slot, topo)
+        central = junction in topo.symmetry_junctions
+
+        def owns(r) -> bool:  # a region the keypoint lies on (either half for a central one)
+            return (central or r[3] == slot.is_mirror) and junction in r[2]
+
+        if not any(owns(r) for r in facing):
             continue
         q = rot[1:] @ p
         hidden = False
         for poly, r in outlines:
-            if r[3] == slot.is_mirror and _junction_of(slot, topo) in r[2]:
+            if owns(r):
                 continue
             inside, dist = _inside(poly, q)
             if not inside or dist < OCCLUSION_MARGIN * size:

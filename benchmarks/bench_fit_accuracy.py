@@ -1,0 +1,165 @@
+"""Leave-one-out accuracy of single-view fitting (issue 3, SPEC "Fitting").
+
+For each template: drop it and its expansions from the library, view it at each of the 13 class
+angles (0°–180° by 15°, elevation 0), annotate the keypoints the view can see (from its own
+geometry) by projection onto a 1000 px wide image (the car spans 900 px) plus N(0, 1 px) noise,
+fit, and measure the 3D error of the 35 keypoints in mm at the true wheelbase.
+
+Cases: the view known (no refinement), and the given angle off by +10° without and with the
+view refinement. Methods: ``paper`` (plain ΣH = 1, 0 ≤ H ≤ 1) and ``gauss`` (Gaussian shape
+prior, the default). ``--sweep`` also scans the prior weight λ on the known-view case.
+
+Run: python benchmarks/bench_fit_accuracy.py [--quick] [--sweep] [--json out.json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+ANGLES = tuple(range(0, 181, 15))
+IMAGE_WIDTH = 1000
+CAR_SPAN = 900
+NOISE_PX = 1.0
+OFFSET_DEG = 10.0
+
+
+def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, elevation: float = 0.0):
+    """Keypoints of a normalised (280, 3) car seen at a view: ({name: (u, v)}, (width, height))."""
+    from carbody.fit.camera import View, project
+    from carbody.fit.visibility import visible_slots
+
+    view = View(azimuth, elevation)
+    both = np.concatenate([truth, truth * [-1.0, 1.0, 1.0]])
+    p = project(both, view)
+    scale = CAR_SPAN / np.ptp(p[:, 0])
+    height = int(np.ceil(np.ptp(p[:, 1]) * scale + 2 * (IMAGE_WIDTH - CAR_SPAN) / 2))
+    offset = (IMAGE_WIDTH / 2 - scale * (p[:, 0].min() + p[:, 0].max()) / 2,
+              height / 2 - scale * (p[:, 1].min() + p[:, 1].max()) / 2)
+    slots = visible_slots(view, truth)
+    pts = np.array([truth[s.point_index] * s.sign for s in slots])
+    uv = project(pts, view, scale, offset) + rng.normal(0.0, NOISE_PX, (len(slots), 2))
+    return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, (IMAGE_WIDTH, height)
+
+
+def run_template(args) -> list[dict]:
+    t, cases, lambdas, angles = args
+    from carbody.fit.single_view import fit_wireframe
+    from carbody.library import load_library
+    from carbody.topology import load_topology
+
+    lib = load_library()
+    idx = load_topology().keypoint_point_indices
+    name = lib.template_names[t]
+    loo = lib.without(name)
+    j = np.flatnonzero((lib.template_index == t) & np.all(lib.factors == 1.0, axis=1))[0]
+    truth = lib.S[:, j].reshape(-1, 3)
+    wb = float(lib.template_wheelbase_mm[t])
+    rng = np.random.default_rng(1000 + t)
+    rows = []
+    for azimuth in angles:
+        kps, size = synthetic_view(truth, azimuth, rng)
+        annotated = sorted({n.removesuffix("_right") for n in kps})
+        ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
+        for method, lam, offset, refine in cases + [("gauss", l, 0.0, False) for l in lambdas]:
+            t0 = time.perf_counter()
+            kw = {"prior_weight": lam} if lam is not None else {}
+            res = fit_wireframe(kps, azimuth + offset, loo, image_size=size, wheelbase_mm=wb,
+                                method=method, refine=refine, **kw)
+            dt = time.perf_counter() - t0
+            err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
+            rows.append({"template": name, "azimuth": azimuth, "method": method, "lambda": lam,
+                         "offset": offset, "refine": refine, "k": len(kps),
+                         "mean_mm": float(err.mean()), "max_mm": float(err.max()),
+                         "annotated_mean_mm": float(err[ann_idx].mean()),
+                         "annotated_max_mm": float(err[ann_idx].max()),
+                         "refined_azimuth": res.view.azimuth, "residual_px": float(res.solution.residual_px.mean()),
+                         "seconds": dt})
+    return rows
+
+
+def case_label(r: dict) -> str:
+    lab = r["method"] + ("" if r["lambda"] is None else f" λ={r['lambda']:g}")
+    if r["offset"]:
+        lab += f", given +{r['offset']:g}°" + (", refined" if r["refine"] else ", not refined")
+    else:
+        lab += ", view known" + (", refined" if r["refine"] else "")
+    return lab
+
+
+def summarise(rows: list[dict]) -> str:
+    out = []
+    labels = list(dict.fromkeys(case_label(r) for r in rows))
+    out.append("| case | mean (mm) | mean 15°–165° | max 30° | max 150° | max all | annotated: max 30° | max 150° | s/fit |")
+    out.append("|---|---|---|---|---|---|---|---|---|")
+    for lab in labels:
+        rs = [r for r in rows if case_label(r) == lab]
+        mean = np.mean([r["mean_mm"] for r in rs])
+        mid = np.mean([r["mean_mm"] for r in rs if 0 < r["azimuth"] < 180])
+        m30 = max([r["max_mm"] for r in rs if r["azimuth"] == 30], default=np.nan)
+        m150 = max([r["max_mm"] for r in rs if r["azimuth"] == 150], default=np.nan)
+        a30 = max([r["annotated_max_mm"] for r in rs if r["azimuth"] == 30], default=np.nan)
+        a150 = max([r["annotated_max_mm"] for r in rs if r["azimuth"] == 150], default=np.nan)
+        mx = max(r["max_mm"] for r in rs)
+        sec = np.mean([r["seconds"] for r in rs])
+        out.append(f"| {lab} | {mean:.1f} | {mid:.1f} | {m30:.1f} | {m150:.1f} | {mx:.1f} | {a30:.1f} | {a150:.1f} | {sec:.3f} |")
+    return "\n".join(out)
+
+
+def table(rows: list[dict], label: str) -> str:
+    rs = [r for r in rows if case_label(r) == label]
+    names = list(dict.fromkeys(r["template"] for r in rs))
+    angles = sorted({r["azimuth"] for r in rs})
+    out = [f"mean / max 3D keypoint error (mm), {label}", "",
+           "| template | " + " | ".join(f"{a}°" for a in angles) + " | mean |",
+           "|---|" + "---|" * (len(angles) + 1)]
+    for n in names:
+        cells = {r["azimuth"]: r for r in rs if r["template"] == n}
+        out.append(f"| {n} | " + " | ".join(f"{cells[a]['mean_mm']:.0f} / {cells[a]['max_mm']:.0f}" for a in angles)
+                   + f" | {np.mean([c['mean_mm'] for c in cells.values()]):.1f} |")
+    out.append("| **mean / max** | " + " | ".join(
+        f"{np.mean([r['mean_mm'] for r in rs if r['azimuth'] == a]):.0f} / "
+        f"{max(r['max_mm'] for r in rs if r['azimuth'] == a):.0f}" for a in angles)
+        + f" | {np.mean([r['mean_mm'] for r in rs]):.1f} |")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="3 templates, 5 angles")
+    ap.add_argument("--sweep", action="store_true", help="also scan the gauss prior weight")
+    ap.add_argument("--json", help="write every row as JSON")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    from carbody.library import load_library
+
+    n_templates = len(load_library().template_names)
+    templates = [0, 5, 9] if args.quick else list(range(n_templates))
+    angles = (0, 30, 90, 150, 180) if args.quick else ANGLES
+    cases = [("paper", None, 0.0, False), ("gauss", None, 0.0, False),
+             ("paper", None, OFFSET_DEG, False), ("paper", None, OFFSET_DEG, True),
+             ("gauss", None, OFFSET_DEG, False), ("gauss", None, OFFSET_DEG, True)]
+    lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(args.workers) as pool:
+        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles) for t in templates]) for r in part]
+    print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
+          f"{NOISE_PX:g} px noise on a {IMAGE_WIDTH} px wide image ({time.perf_counter() - t0:.0f} s)\n")
+    print(summarise(rows))
+    for label in dict.fromkeys(case_label(r) for r in rows):
+        if "λ=" in label:
+            continue
+        print()
+        print(table(rows, label))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,71 @@
+"""The camera contract of SPEC "Frames and units" and the paper's eq. 1."""
+import numpy as np
+import pytest
+
+from carbody.errors import AngleError
+from carbody.fit.camera import (View, camera_direction, check_azimuth, eq1_angles, eq1_rotation,
+                                mirror_view, project, view_rotation)
+
+NOSE = np.array([0.0, -900.0, 300.0])   # ahead of the front wheel
+TAIL = np.array([0.0, 1900.0, 300.0])
+LEFT = np.array([800.0, 500.0, 300.0])  # on the car's left side
+
+
+def test_side_view_puts_the_nose_left_and_up_up():
+    v = View(90)
+    nose, tail, top = project(np.array([NOSE, TAIL, [0, 0, 1000.0]]), v)
+    assert nose[0] < tail[0]
+    assert top[1] < nose[1]  # v grows downward
+    np.testing.assert_allclose(eq1_rotation(0, 0, 0), view_rotation(v), atol=1e-12)
+
+
+@pytest.mark.parametrize("azimuth,toward", [(0, [0, -1, 0]), (90, [1, 0, 0]), (180, [0, 1, 0]), (270, [-1, 0, 0])])
+def test_camera_direction_at_the_four_sides(azimuth, toward):
+    np.testing.assert_allclose(camera_direction(View(azimuth)), toward, atol=1e-12)
+
+
+def test_front_view_shows_the_left_side_on_image_right():
+    (u_left, _), (u_centre, _) = project(np.array([LEFT, [0, 500, 300.0]]), View(0))
+    assert u_left > u_centre
+
+
+def test_elevation_looks_down_on_the_roof():
+    d = camera_direction(View(30, 20))
+    assert d[2] == pytest.approx(np.sin(np.radians(20)))
+    rot = view_rotation(View(30, 20))
+    np.testing.assert_allclose(rot @ rot.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(rot) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_eq1_angles_reproduce_the_view(seed):
+    rng = np.random.default_rng(seed)
+    v = View(rng.uniform(0, 360), rng.uniform(-40, 60), rng.uniform(-20, 20))
+    np.testing.assert_allclose(eq1_rotation(*eq1_angles(v)), view_rotation(v), atol=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_same_camera_as_the_renderer(seed):
+    from carbody.render.camera import camera_basis
+
+    rng = np.random.default_rng(seed)
+    az, el, roll = rng.uniform(0, 360), rng.uniform(-30, 60), rng.uniform(-20, 20)
+    d, r, w = camera_basis(az, el, roll)
+    np.testing.assert_allclose(view_rotation(View(az, el, roll)), np.array([d, r, w]), atol=1e-12)
+
+
+def test_mirror_view_flips_the_image_of_the_mirrored_car():
+    rng = np.random.default_rng(0)
+    pts = rng.normal(size=(20, 3)) * 500
+    v = View(35, 12, 4)
+    a = project(pts, v)
+    b = project(pts * [-1, 1, 1], mirror_view(v))
+    np.testing.assert_allclose(a[:, 0], -b[:, 0], atol=1e-9)
+    np.testing.assert_allclose(a[:, 1], b[:, 1], atol=1e-9)
+
+
+@pytest.mark.parametrize("bad", [-1, 360.5, "abc", float("nan"), None])
+def test_view_outside_0_360_is_refused(bad):
+    with pytest.raises(AngleError):
+        check_azimuth(bad)
+    assert check_azimuth(360) == 360.0

@@ -1,0 +1,94 @@
+"""``carbody fit`` and ``carbody visible-keypoints`` end to end, and their refusals."""
+import json
+
+import numpy as np
+import pytest
+
+from tests.conftest import run_cli
+
+
+@pytest.fixture(scope="module")
+def photo(tmp_path_factory, library):
+    """A drawn (photo-free) picture of the Volvo V60 at front 30°, elevation 5°, and its keypoints."""
+    import cv2
+
+    from carbody.fit.camera import View, project
+    from carbody.fit.visibility import visible_slots
+    from carbody.templates.drawing import sample_curves
+
+    folder = tmp_path_factory.mktemp("fit")
+    t = library.template_names.index("Volvo V60")
+    j = int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
+    cp = library.points(j)
+    view = View(30, 5)
+    both = np.concatenate([cp, cp * [-1, 1, 1]])
+    p = project(both, view)
+    s = 800 / np.ptp(p[:, 0])
+    off = (500 - s * p[:, 0].mean(), 300 - s * p[:, 1].mean())
+    img = np.full((600, 1000, 3), 235, np.uint8)
+    for half in (cp, cp * [-1, 1, 1]):
+        for c in sample_curves(half, 20):
+            cv2.polylines(img, [np.round(project(c, view, s, off)).astype(np.int32)], False, (60, 60, 60), 2)
+    cv2.imwrite(str(folder / "car.png"), img)
+    rng = np.random.default_rng(0)
+    kp = {sl.name: [float(x) for x in project(cp[sl.point_index] * sl.sign, view, s, off) + rng.normal(0, 1, 2)]
+          for sl in visible_slots(view, cp)}
+    (folder / "car.json").write_text(json.dumps({"image": "car.png", "keypoints": kp}))
+    return folder
+
+
+def test_fit_writes_step_overlay_and_report(photo):
+    out = photo / "out"
+    out.mkdir()
+    proc = run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
+                   "--exclude-template", "Volvo V60", "--truth", "Volvo V60",
+                   "-o", str(out / "car.step"), "--overlay", str(out / "ov.png"), "--report", str(out / "r.json"),
+                   check=True)
+    assert "fitted" in proc.stdout
+    from carbody.fit.overlay import read_image
+    from carbody.occ.step_curves import read_curves_step
+    from carbody.wireframe import read_wireframe
+
+    wf = read_wireframe(out / "car.step")
+    _, curves = read_curves_step(out / "car.step")
+    assert len(curves) > 70 and any(c.name.endswith("_right") for c in curves)  # both halves
+    assert 2500 < wf.measure()["wheelbase_mm"] < 3200  # the mix's own wheelbase, mm
+    assert read_image(out / "ov.png").shape == (600, 1000, 3)
+    rep = json.loads((out / "r.json").read_text())
+    assert abs(rep["refined_view"]["azimuth_deg"] - 30) < 10
+    assert len(rep["keypoints_mm"]) >= 35 and rep["residual_px_mean"] < 3
+    assert rep["top_weights"] and "Volvo V60" not in rep["template_mix"]
+    assert rep["error_mm_mean"] < 80 and set(rep["error_mm"]) == {k for k in rep["keypoints_mm"] if not k.endswith("_right")}
+    assert (out / "r.errors.png").is_file()
+
+
+def test_visible_keypoints_command():
+    proc = run_cli("visible-keypoints", "--view", "90", check=True)
+    assert "rear_arch_top" in proc.stdout and "_right" not in proc.stdout
+
+
+def _bad(photo, tmp_path, keypoints=None, view="30", image=None):
+    kfile = photo / "car.json"
+    if keypoints is not None:
+        kfile = tmp_path / "k.json"
+        kfile.write_text(json.dumps({"keypoints": keypoints}))
+    out = tmp_path / "x.step"
+    proc = run_cli("fit", str(image or photo / "car.png"), "--keypoints", str(kfile), "--view", view,
+                   "-o", str(out), "--overlay", str(tmp_path / "x.png"))
+    assert proc.returncode == 2, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert not out.exists() and not (tmp_path / "x.png").exists()
+    return proc.stderr
+
+
+def test_bad_inputs_exit_2_with_one_line_and_no_output(photo, tmp_path):
+    good = json.loads((photo / "car.json").read_text())["keypoints"]
+    assert "unknown keypoint name" in _bad(photo, tmp_path, {**good, "wing_mirror": [10, 10]})
+    assert "at least" in _bad(photo, tmp_path, dict(list(good.items())[:3]))
+    assert "NaN" in _bad(photo, tmp_path, {**good, "nose_centre": [float("nan"), 3.0]})
+    assert "outside" in _bad(photo, tmp_path, {**good, "nose_centre": [5000, 3.0]})
+    assert "one line" in _bad(photo, tmp_path, {n: [100 + i, 50 + i] for i, n in enumerate(good)})
+    assert "0–360" in _bad(photo, tmp_path, view="400")
+    junk = tmp_path / "junk.png"
+    junk.write_bytes(b"not an image")
+    assert "not a readable image" in _bad(photo, tmp_path, image=junk)
