@@ -1,9 +1,21 @@
 """carbody: one photo of a car -> an editable CAD car body in STEP.
 
+    import carbody
+    result = carbody.reconstruct("car.png", "car_keypoints.json")   # view from the classifier
+    result.body_cadquery(), result.wireframe_build123d(), result.write("out/")
+
 The pipeline, one module per stage: ``topology`` (curves, keypoints, regions as data) ->
 ``templates`` (14 real cars, STEP) -> ``library`` (normalised, expanded model matrix S) ->
-``fit`` (keypoints -> wireframe) -> ``surface`` (regions -> skeleton -> Bezier faces -> shell)
--> ``occ`` (the OCCT boundary: STEP in/out, faces, sewing, checks).
+``view`` (view classifier) -> ``fit`` (keypoints -> wireframe) -> ``surface`` (regions ->
+skeleton -> Bezier faces -> shell) -> ``occ`` (the OCCT boundary: STEP in/out, faces, sewing,
+checks); ``pipeline`` runs them all. Heavy libraries load on first use, not on import.
 """
 
 __version__ = "0.1.0"
+
+
+def reconstruct(image, keypoints, view=None, wheelbase_mm=None, **kwargs):
+    """Photo + keypoints -> wireframe and body; see :func:`carbody.pipeline.reconstruct`."""
+    from carbody.pipeline import reconstruct as run
+
+    return run(image, keypoints, view, wheelbase_mm, **kwargs)

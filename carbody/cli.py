@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "carbody.view.cli",
     "carbody.fit.cli",
     "carbody.surface.cli",
+    "carbody.reconstruct_cli",
 )
 
 

@@ -35,3 +35,31 @@ def as_build123d(shape):
     import build123d as bd
 
     return bd.Shape.cast(shape)
+
+
+def thicken(shape, thickness_mm: float):
+    """A solid skin: ``shape`` (a shell, or a cadquery/build123d one) offset by ``thickness_mm``.
+
+    Uses OCCT's simple thick-solid offset, which works on open shells of Bezier faces where the
+    general offset algorithm (build123d's ``thicken``) fails. Negative thickness goes inwards.
+
+    Returns:
+        a shape of the same kind as given: TopoDS_Solid, ``cadquery.Solid`` or ``build123d.Solid``.
+    """
+    from OCP.BRepOffsetAPI import BRepOffsetAPI_MakeThickSolid
+
+    from carbody.errors import CarbodyError
+
+    wrapped = getattr(shape, "wrapped", shape)
+    maker = BRepOffsetAPI_MakeThickSolid()
+    maker.MakeThickSolidBySimple(wrapped, float(thickness_mm))
+    maker.Build()
+    if not maker.IsDone():
+        raise CarbodyError(f"OCCT could not thicken the shape by {thickness_mm} mm")
+    solid = maker.Shape()
+    module = type(shape).__module__.split(".")[0]
+    if module == "cadquery":
+        return as_cadquery(solid)
+    if module == "build123d":
+        return as_build123d(solid)
+    return solid

@@ -1,0 +1,290 @@
+"""The whole job in one call: photo + keypoints -> view -> wireframe fit -> surfaces -> files.
+
+    import carbody
+    result = carbody.reconstruct("car.png", "car_keypoints.json")      # view from the classifier
+    result.body_cadquery()          # cadquery.Shell of the sewn body, mm
+    result.wireframe_build123d()    # build123d.Compound of the 125 Bezier edges
+    result.write("out/")            # wireframe.step, body.step, car.step, pictures, report
+
+The CLI ``carbody reconstruct`` is a thin layer over :func:`reconstruct` and
+:meth:`Reconstruction.write`.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from carbody.errors import CarbodyError, KeypointError
+
+#: The stages, in order, as the progress display names them.
+STAGES = ("view", "fit", "surfaces")
+
+#: Files :meth:`Reconstruction.write` makes.
+OUTPUT_FILES = ("wireframe.step", "body.step", "car.step", "overlay.png", "body.png", "report.json", "summary.txt")
+
+
+class OutputError(CarbodyError):
+    """The output folder cannot be created or written."""
+
+
+@dataclass
+class Reconstruction:
+    """The result of :func:`reconstruct`.
+
+    Attributes:
+        name: the car (STEP product name).
+        image: (h, w, 3) uint8 RGB photo.
+        image_path: where the photo came from, if a file.
+        view_source: ``"given"`` or ``"classifier"``.
+        view_prediction: the classifier's answer (:class:`carbody.view.predict.ViewPrediction`) or None.
+        fit: the wireframe fit (:class:`carbody.fit.FitResult`).
+        body: the surfaced body (:class:`carbody.surface.Body`).
+        timings_s: seconds per stage.
+    """
+
+    name: str
+    image: np.ndarray
+    image_path: Path | None
+    view_source: str
+    view_prediction: Any
+    fit: Any
+    body: Any
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def wireframe(self):
+        """The fitted :class:`carbody.wireframe.Wireframe` (left half, mm)."""
+        return self.fit.wireframe
+
+    def wireframe_shape(self):
+        """TopoDS_Compound of the wireframe's Bezier edges, both halves, mm."""
+        from carbody.occ.shapes import curves_compound
+
+        return curves_compound(self.wireframe.named_curves(both_halves=True))
+
+    def body_shape(self):
+        """The sewn TopoDS_Shell of the body, both halves, mm."""
+        return self.body.shape
+
+    def wireframe_cadquery(self):
+        from carbody.occ.shapes import as_cadquery
+
+        return as_cadquery(self.wireframe_shape())
+
+    def body_cadquery(self):
+        from carbody.occ.shapes import as_cadquery
+
+        return as_cadquery(self.body_shape())
+
+    def wireframe_build123d(self):
+        from carbody.occ.shapes import as_build123d
+
+        return as_build123d(self.wireframe_shape())
+
+    def body_build123d(self):
+        from carbody.occ.shapes import as_build123d
+
+        return as_build123d(self.body_shape())
+
+    def report(self, truth=None) -> dict:
+        """Everything measured, as JSON-ready data (see README)."""
+        from carbody.fit.report import build_report
+
+        v = self.fit.view
+        view: dict[str, Any] = {"source": self.view_source, "azimuth_deg": v.azimuth,
+                                "elevation_deg": v.elevation, "roll_deg": v.roll,
+                                "given_azimuth_deg": self.fit.given_view.azimuth}
+        if self.view_prediction is not None:
+            p = self.view_prediction
+            view["classifier"] = {"class_deg": p.class_deg, "theta_deg": p.theta_deg, "confidence": p.confidence}
+        shell = self.body.report.get("shell", {})
+        return {
+            "car": self.name,
+            "image": str(self.image_path) if self.image_path else None,
+            "view": view,
+            "fit": build_report(self.fit, truth),
+            "surfaces": {"faces": len(self.body.faces), **shell},
+            "timings_s": self.timings_s,
+        }
+
+    def summary(self, report: dict) -> str:
+        """A few lines for a person: view, residual, accuracy when known, body checks, times."""
+        fit, view = report["fit"], report["view"]
+        lines = [
+            f"car: {self.name}",
+            f"view: {view['azimuth_deg']:.1f} deg azimuth, {view['elevation_deg']:.1f} deg elevation "
+            f"({view['source']}{', classifier said %.0f deg' % view['classifier']['class_deg'] if 'classifier' in view else ''})",
+            f"keypoints: {fit['keypoints_annotated']}, reprojection residual mean "
+            f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
+            f"wheelbase: {fit['wheelbase_mm']:.0f} mm",
+        ]
+        if "error_mm_mean" in fit:
+            lines.append(f"3D keypoint error vs truth: mean {fit['error_mm_mean']:.1f} mm, "
+                         f"max {fit['error_mm_max']:.1f} mm")
+        s = report["surfaces"]
+        lines.append(f"body: {s['faces']} Bezier faces in one shell, valid={s.get('valid')}, "
+                     f"open only at {s.get('free_closed_loops')} closed bottom loop(s)")
+        lines.append("times: " + ", ".join(f"{k} {v:.2f} s" for k, v in report["timings_s"].items()))
+        return "\n".join(lines) + "\n"
+
+    def write(self, out_dir: str | Path, truth=None) -> dict[str, Path]:
+        """Write every output into ``out_dir`` (created if needed); all or nothing.
+
+        Files: ``wireframe.step`` (both halves, named B-spline edges), ``body.step`` (one shell,
+        faces named and coloured by region), ``car.step`` (one AP214 assembly with the parts
+        ``wireframe`` and ``body``), ``overlay.png`` (photo, annotated red and reprojected green
+        keypoints, projected wireframe), ``body.png`` (shaded body, three views),
+        ``report.json`` and ``summary.txt``.
+
+        Raises:
+            OutputError: the folder cannot be created or written.
+        """
+        out = prepare_output_dir(out_dir)
+        staging = Path(tempfile.mkdtemp(prefix=".carbody-", dir=out))
+        try:
+            paths = self._write_all(staging, truth)
+            final = {}
+            for key, path in paths.items():
+                final[key] = out / path.name
+                os.replace(path, final[key])
+            return final
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+
+    def _write_all(self, folder: Path, truth) -> dict[str, Path]:
+        from carbody.fit.overlay import draw_overlay, write_image
+        from carbody.render import render_views
+        from carbody.surface.body import write_body
+        from carbody.wireframe import write_wireframe
+
+        start = time.perf_counter()
+        paths = {
+            "wireframe": write_wireframe(folder / "wireframe.step", self.wireframe, both_halves=True),
+            "body": write_body(folder / "body.step", self.body),
+            "assembly": write_assembly(folder / "car.step", self),
+            # the overlay is drawn with OpenCV, which works in BGR
+            "overlay": write_image(folder / "overlay.png", draw_overlay(self.image[..., ::-1].copy(), self.fit)),
+        }
+        render_views(self.body, folder / "body.png", size=(480, 340))
+        paths["render"] = folder / "body.png"
+        self.timings_s["write"] = time.perf_counter() - start
+        report = self.report(truth)
+        report["files"] = sorted(p.name for p in paths.values()) + ["report.json", "summary.txt"]
+        (folder / "report.json").write_text(json.dumps(report, indent=1))
+        (folder / "summary.txt").write_text(self.summary(report))
+        paths["report"] = folder / "report.json"
+        paths["summary"] = folder / "summary.txt"
+        return paths
+
+
+def prepare_output_dir(out_dir: str | Path) -> Path:
+    """Create ``out_dir`` if needed and make sure it can be written (before any long work)."""
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = tempfile.NamedTemporaryFile(dir=out, prefix=".carbody-probe-")
+        probe.close()
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot write the output folder ({exc.strerror or exc})") from None
+    return out
+
+
+def write_assembly(path: Path, result: Reconstruction) -> Path:
+    """One AP214 file holding the wireframe and the body as named parts of an assembly."""
+    import cadquery as cq
+
+    from carbody.occ.step_curves import atomic_write
+    from carbody.surface.body import face_names, region_colour
+
+    assy = cq.Assembly(name=result.name)
+    assy.add(result.wireframe_cadquery(), name="wireframe", color=cq.Color(0.1, 0.2, 0.6))
+    assy.add(result.body_cadquery(), name="body", color=cq.Color(0.7, 0.7, 0.72))
+    body_part = assy.children[-1]
+    for name, patch, (_, face) in zip(face_names(result.body), result.body.patches, result.body.faces):
+        body_part.addSubshape(cq.Face(face), name=name, color=cq.Color(*region_colour(patch.region)))
+    return atomic_write(path, lambda tmp: assy.export(tmp, "STEP"))
+
+
+def _read_inputs(image, keypoints):
+    """(RGB image, its path or None, annotation) with sizes checked against each other."""
+    from carbody.fit.keypoints_io import Annotation, read_keypoints
+    from carbody.view.predict import read_image
+
+    image_path = None
+    if isinstance(image, (str, Path)):
+        image_path = Path(image)
+    rgb = read_image(image)
+    if isinstance(keypoints, (str, Path)):
+        ann = read_keypoints(keypoints)
+    else:
+        ann = Annotation({k: tuple(v) for k, v in dict(keypoints).items()}, None, None)
+    h, w = rgb.shape[:2]
+    if ann.image_size is not None and tuple(int(s) for s in ann.image_size) != (w, h):
+        aw, ah = ann.image_size
+        raise KeypointError(f"the keypoints were marked on a {aw} x {ah} image but the photo is {w} x {h}")
+    return rgb, image_path, ann
+
+
+def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float | None = None, *,
+                elevation_deg: float = 0.0, name: str | None = None, library=None,
+                on_stage: Callable[[str], None] | None = None) -> Reconstruction:
+    """Photo + keypoints -> the car's wireframe and sewn body.
+
+    Args:
+        image: photo path or (h, w[, c]) uint8 array (grayscale and RGBA work).
+        keypoints: keypoint file (the project's JSON, COCO or labelme) or {name: (u, v)} pixels.
+        view: azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side); None asks the
+            shipped view classifier.
+        wheelbase_mm: the car's real wheelbase; None uses the fitted mix of the templates'.
+        elevation_deg: starting camera elevation for the view refinement.
+        name: the car's name in the STEP files (default: the photo's file stem).
+        library: a :class:`carbody.library.Library` (default the shipped one).
+        on_stage: called with each stage's name as it starts (progress display).
+
+    Raises:
+        carbody.errors.CarbodyError: any bad input, in one line (unreadable image, keypoints that
+            do not fit the image, a view outside 0-360, too few or degenerate keypoints, ...).
+    """
+    from carbody.fit import View, fit_wireframe
+    from carbody.surface import build_body
+
+    timings: dict[str, float] = {}
+    rgb, image_path, ann = _read_inputs(image, keypoints)
+    h, w = rgb.shape[:2]
+    name = name or (image_path.stem if image_path else "car")
+
+    def stage(label: str):
+        if on_stage:
+            on_stage(label)
+        return time.perf_counter()
+
+    start = stage("view")
+    prediction = None
+    if view is None:
+        from carbody.view.predict import predict_view
+
+        prediction = predict_view(rgb)
+        azimuth, source = prediction.theta_deg, "classifier"
+    else:
+        azimuth, source = view, "given"
+    timings["view"] = time.perf_counter() - start
+
+    start = stage("fit")
+    from carbody.fit.camera import check_azimuth
+
+    fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library,
+                        image_size=(w, h), wheelbase_mm=wheelbase_mm, name=name)
+    timings["fit"] = time.perf_counter() - start
+
+    start = stage("surfaces")
+    body = build_body(fit.wireframe)
+    timings["surfaces"] = time.perf_counter() - start
+    return Reconstruction(name, rgb, image_path, source, prediction, fit, body, timings)

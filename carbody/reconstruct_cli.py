@@ -1,0 +1,57 @@
+"""``carbody reconstruct``: photo + keypoints -> wireframe, body, assembly, pictures, report."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("reconstruct", help="photo + keypoints -> wireframe and body STEP, pictures, report",
+                       description="Run view (unless --view is given) -> fit -> surfaces and write "
+                                   "wireframe.step, body.step, car.step (assembly), overlay.png, body.png, "
+                                   "report.json and summary.txt into OUT_DIR.")
+    p.add_argument("image", type=Path, help="the car photo (PNG, JPEG, ...)")
+    p.add_argument("--keypoints", "-k", required=True, type=Path,
+                   help="keypoints marked on the photo: the project's JSON, COCO keypoints or labelme")
+    p.add_argument("--view", type=float, default=None,
+                   help="view azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side); "
+                        "default: the shipped view classifier")
+    p.add_argument("--wheelbase", type=float, default=None, help="the car's wheelbase in mm (default: fitted)")
+    p.add_argument("--truth", default=None, help="ground truth wireframe STEP or template name: adds 3D errors")
+    p.add_argument("--name", default=None, help="the car's name in the STEP files (default: photo file stem)")
+    p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
+    p.set_defaults(func=run_reconstruct)
+
+
+def load_truth(spec: str):
+    """A ground-truth wireframe from a STEP file or a template name."""
+    from carbody.templates import load_template
+    from carbody.wireframe import read_wireframe
+
+    return read_wireframe(spec) if Path(spec).suffix.lower() in (".step", ".stp") else load_template(spec)
+
+
+def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
+    from tqdm import tqdm
+
+    from carbody.pipeline import STAGES, prepare_output_dir, reconstruct
+
+    prepare_output_dir(args.out)  # fail before the work, not after
+    truth = load_truth(args.truth) if args.truth else None
+    with tqdm(total=len(STAGES) + 1, desc="carbody", unit="stage", file=sys.stderr,
+              bar_format="{desc}: {n_fmt}/{total_fmt} {bar} {elapsed}") as bar:
+        def on_stage(label: str) -> None:
+            if bar.n or label != STAGES[0]:
+                bar.update(1)
+            bar.set_description(label)
+
+        result = reconstruct(args.image, args.keypoints, args.view, args.wheelbase, name=args.name,
+                             on_stage=on_stage)
+        bar.update(1)
+        bar.set_description("write")
+        paths = result.write(args.out, truth)
+        bar.update(1)
+    print((args.out / "summary.txt").read_text(), end="", file=out)
+    print(f"wrote {', '.join(sorted(p.name for p in paths.values()))} to {args.out.resolve()}", file=out)
+    return 0

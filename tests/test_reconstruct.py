@@ -1,0 +1,164 @@
+"""One command, one Python call: photo + keypoints -> wireframe, body, assembly, pictures, report."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from carbody.errors import CarbodyError
+from tests.conftest import REPO, run_cli
+
+EXAMPLES = REPO / "examples"
+PHOTO, KEYPOINTS, TRUTH = EXAMPLES / "car.png", EXAMPLES / "car_keypoints.json", EXAMPLES / "car_truth.step"
+
+
+@pytest.fixture(scope="module")
+def result():
+    import carbody
+
+    return carbody.reconstruct(PHOTO, KEYPOINTS, view=30)
+
+
+@pytest.fixture(scope="module")
+def written(result, tmp_path_factory):
+    from carbody.wireframe import read_wireframe
+
+    out = tmp_path_factory.mktemp("recon") / "out"
+    paths = result.write(out, truth=read_wireframe(TRUTH))
+    return out, paths
+
+
+def test_the_example_car_is_reconstructed_within_the_accuracy_target(result):
+    from carbody.fit.report import keypoint_errors_mm
+    from carbody.wireframe import read_wireframe
+
+    errors = np.array(list(keypoint_errors_mm(result.wireframe, read_wireframe(TRUTH)).values()))
+    assert errors.mean() < 50.0 and errors.max() < 120.0
+    assert abs(result.fit.view.azimuth - 30.0) < 5.0
+
+
+def test_every_output_is_written_and_reads_back(written, topology):
+    from carbody.occ.step_body import read_body_step
+    from carbody.wireframe import read_wireframe
+
+    out, paths = written
+    assert {p.name for p in out.iterdir()} == {"wireframe.step", "body.step", "car.step", "overlay.png",
+                                                "body.png", "report.json", "summary.txt"}
+    wire = read_wireframe(out / "wireframe.step")
+    assert wire.control_points.shape == (280, 3)
+    body = read_body_step(out / "body.step")
+    regions = {name.rsplit("_", 1)[0].removesuffix("_right") for name, _, _ in body.faces}
+    assert regions == {r.name for r in topology.regions}
+    report = json.loads((out / "report.json").read_text())
+    assert report["surfaces"]["valid"] and report["surfaces"]["free_closed_loops"] == 1
+    assert set(report["timings_s"]) >= {"view", "fit", "surfaces", "write"}
+    assert report["fit"]["error_mm_mean"] < 50.0
+    summary = (out / "summary.txt").read_text()
+    assert "residual" in summary and "3D keypoint error" in summary
+
+
+def test_the_assembly_holds_both_named_parts(written, result):
+    from OCP.STEPControl import STEPControl_Reader
+    from OCP.StepBasic import StepBasic_Product
+    from OCP.StepRepr import StepRepr_NextAssemblyUsageOccurrence
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+
+    out, _ = written
+    reader = STEPControl_Reader()
+    reader.ReadFile(str(out / "car.step"))
+    model = reader.StepModel()
+    entities = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
+    products = {e.Name().ToCString() for e in entities if isinstance(e, StepBasic_Product)}
+    assert products == {"car", "wireframe", "body"}
+    assert sum(isinstance(e, StepRepr_NextAssemblyUsageOccurrence) for e in entities) == 2
+    reader.TransferRoots()
+    faces, explorer = 0, TopExp_Explorer(reader.OneShape(), TopAbs_FACE)
+    while explorer.More():
+        faces += 1
+        explorer.Next()
+    assert faces == len(result.body.faces)
+
+
+def test_results_are_cadquery_and_build123d_shapes(result):
+    import build123d as bd
+    import cadquery as cq
+
+    body, wire = result.body_cadquery(), result.wireframe_cadquery()
+    assert isinstance(body, cq.Shell) and body.isValid() and body.Area() > 1e7
+    assert isinstance(wire, cq.Compound) and len(wire.Edges()) == 125
+    b3 = result.body_build123d()
+    assert isinstance(b3, bd.Shell) and abs(b3.area - body.Area()) < 1e-6 * body.Area()
+    assert isinstance(result.wireframe_build123d(), bd.Compound)
+
+
+@pytest.mark.parametrize("script", ["cadquery_script.py", "build123d_script.py"])
+def test_example_scripts_run(script, tmp_path):
+    proc = subprocess.run([sys.executable, str(EXAMPLES / script), str(tmp_path)], capture_output=True,
+                          text=True, cwd=REPO, env={**os.environ}, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "valid True" in proc.stdout
+    written = {p.name for p in tmp_path.iterdir()}
+    assert written >= ({"body_cut.step", "body_cut.stl"} if "cadquery" in script else {"panel.step"})
+
+
+def test_cli_reconstruct_writes_the_folder_and_prints_the_summary(tmp_path):
+    out = tmp_path / "car"
+    proc = run_cli("reconstruct", str(PHOTO), "-k", str(KEYPOINTS), "--view", "30", "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert "residual" in proc.stdout and str(out.resolve()) in proc.stdout
+    assert (out / "body.step").is_file() and (out / "car.step").is_file()
+
+
+def _bad(tmp_path, *args):
+    proc = run_cli("reconstruct", *args)
+    lines = [line for line in proc.stderr.strip().splitlines() if "error" in line]
+    return proc, lines
+
+
+def test_bad_keypoint_file_is_one_line_and_writes_nothing(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"hello": 1}')
+    out = tmp_path / "out"
+    proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(bad), "--view", "30", "-o", str(out))
+    assert proc.returncode == 2 and len(lines) == 1 and "not a keypoint file" in lines[0]
+    assert not any(out.iterdir())
+
+
+def test_image_and_keypoints_of_different_sizes_are_refused(tmp_path):
+    import cv2
+
+    small = tmp_path / "small.png"
+    cv2.imwrite(str(small), cv2.resize(cv2.imread(str(PHOTO)), (500, 320)))
+    out = tmp_path / "out"
+    proc, lines = _bad(tmp_path, str(small), "-k", str(KEYPOINTS), "--view", "30", "-o", str(out))
+    assert proc.returncode == 2 and len(lines) == 1 and "1000 x 640" in lines[0] and "500 x 320" in lines[0]
+    assert not any(out.iterdir())
+
+
+def test_an_unwritable_output_folder_is_refused_before_any_work(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(KEYPOINTS), "--view", "30", "-o", str(blocker / "out"))
+    assert proc.returncode == 2 and len(lines) == 1 and "cannot write the output folder" in lines[0]
+
+
+def test_an_unreadable_photo_is_refused(tmp_path):
+    junk = tmp_path / "car.png"
+    junk.write_bytes(b"not an image at all")
+    with pytest.raises(CarbodyError, match="not an image"):
+        import carbody
+
+        carbody.reconstruct(junk, KEYPOINTS, view=30)
+
+
+def test_the_shipped_example_matches_its_generator():
+    """examples/car.png and its keypoints come from examples/make_example.py (the truth file too)."""
+    data = json.loads(KEYPOINTS.read_text())
+    assert data["image"] == "car.png" and tuple(data["image_size"]) == (1000, 640)
+    assert len(data["keypoints"]) >= 17
