@@ -89,6 +89,12 @@ def test_regions_meet_exactly_and_are_g1_inside(file, topology):
         assert r["inner_g1_deg"] <= G1_TOL_DEG, name  # ribs where the sides are smooth
     for seam, s in report["seams"].items():
         assert s["g0_mm"] < 1e-6, seam
+    # each half meets its mirror smoothly across the symmetry plane (ribs leave it square)
+    mirror = {k: s for k, s in report["seams"].items() if k.endswith("_right")}
+    assert set(mirror) == {f"{r}|{r}_right" for r in ("front_face", "hood", "windshield", "roof", "rear_window",
+                                                      "trunk_lid", "tail")}
+    for seam, s in mirror.items():
+        assert s["g1_deg"] <= G1_TOL_DEG, seam
     assert sum(r["faces"] for r in report["regions"].values()) * 2 == len(body.faces)
 
 
