@@ -231,3 +231,17 @@ def test_surface_cli_bad_input_exit_2_nothing_written(kind, tmp_path):
     assert len(lines) == 1 and f"region {region}" in lines[0]
     assert not out.exists() and not rep.exists()
     assert [p.name for p in tmp_path.iterdir()] == ["broken.step"]
+
+
+def test_a_fitted_like_blend_of_templates_surfaces_too(templates):
+    # fitted wireframes are blends of library models: their curve joins are no longer exactly G1
+    from carbody.surface import build_body
+    from carbody.wireframe import Wireframe
+
+    weights = {0: 0.5, 5: 0.3, 11: 0.2}
+    cp = sum(w * templates[i][1].control_points for i, w in weights.items())
+    body = build_body(Wireframe("blend", cp))
+    shell = body.report["shell"]
+    assert shell["valid"] and shell["free_open_wires"] == 0 and shell["free_closed_loops"] == 1
+    assert shell["max_tolerance_mm"] <= SHELL_TOL_MM
+    assert max(r["inner_g1_deg"] for r in body.report["regions"].values()) <= G1_TOL_DEG
