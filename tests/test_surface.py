@@ -245,3 +245,13 @@ def test_a_fitted_like_blend_of_templates_surfaces_too(templates):
     assert shell["valid"] and shell["free_open_wires"] == 0 and shell["free_closed_loops"] == 1
     assert shell["max_tolerance_mm"] <= SHELL_TOL_MM
     assert max(r["inner_g1_deg"] for r in body.report["regions"].values()) <= G1_TOL_DEG
+
+
+def test_surface_cli_refuses_a_missing_output_folder_before_writing(tmp_path):
+    from carbody.templates import templates_dir
+
+    out = tmp_path / "body.step"
+    proc = run_cli("surface", str(templates_dir() / TEMPLATE_FILES[0]), "-o", str(out),
+                   "--report", str(tmp_path / "no" / "r.json"))
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert "does not exist" in proc.stderr and not out.exists()

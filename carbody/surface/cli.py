@@ -64,6 +64,11 @@ def _surface(args) -> int:
 
     from carbody.surface.body import build_body, write_body
 
+    from carbody.errors import SurfaceError
+
+    for out in (args.output, args.report, args.png):  # refuse before any work, write nothing
+        if out is not None and not Path(out).resolve().parent.is_dir():
+            raise SurfaceError(f"{out}: folder {Path(out).resolve().parent} does not exist")
     t0 = time.perf_counter()
     wf = read_surface_wireframe(args.wireframe)
     t1 = time.perf_counter()
