@@ -31,6 +31,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--batch-size", type=int, default=64)
     p.add_argument("--lr", type=float, default=0.001)
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    p.add_argument("--schedule", choices=("constant", "cosine"), default="constant",
+                   help="learning rate: constant (paper) or cosine decay from --lr to 0")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--plot", default=None, help="loss/accuracy PNG (default: OUTPUT with .png)")
     p.set_defaults(func=_train_view)
@@ -60,7 +62,7 @@ def _train_view(args) -> int:
     from carbody.view.train import TrainConfig, train_view_classifier
 
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
-                      threads=args.threads)
+                      threads=args.threads, schedule=args.schedule)
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "
           f"({hist.seconds:.0f} s)")

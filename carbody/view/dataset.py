@@ -288,8 +288,8 @@ def sample_shot(rng: np.random.Generator, class_index: int, vary: Variation):
     from carbody.render import Look
 
     theta = (CLASS_ANGLES_DEG[class_index] + rng.uniform(-1, 1) * vary.angle_jitter_deg) % 360.0
-    mirrored = theta > 180.0 or (theta in (0.0, 180.0) and rng.random() < 0.5) or \
-        (class_index == 0 and theta > 180.0)
+    # right-side views are mirror images; exact 0° / 180° views are flipped half the time
+    mirrored = theta > 180.0 or (theta in (0.0, 180.0) and rng.random() < 0.5)
     render_theta = 360.0 - theta if mirrored else theta
     if vary.elevation:
         elevation = rng.uniform(0.0, 30.0)

@@ -157,11 +157,13 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
 
     x = np.stack([to_square_input(read_image(im)) for im in images])   # bad input first
     model, _ = load_classifier(str(weights) if weights else None)
-    with torch.no_grad():
+    n = len(x)
+    if mirror_average:          # one forward pass over the pictures and their mirror images
+        x = np.concatenate([x, x[:, :, ::-1]])
+    with torch.inference_mode():
         p = torch.softmax(model(to_tensor(x)), 1).numpy()
-        if mirror_average:
-            pm = torch.softmax(model(to_tensor(x[:, :, ::-1])), 1).numpy()
-            p = (p + pm[:, MIRROR_PERMUTATION]) / 2
+    if mirror_average:
+        p = (p[:n] + p[n:][:, MIRROR_PERMUTATION]) / 2
     return p
 
 

@@ -28,7 +28,11 @@ STD = 0.25
 
 @dataclass
 class TrainConfig:
-    """Hyper-parameters (paper III.B defaults)."""
+    """Hyper-parameters (paper III.B defaults).
+
+    ``schedule`` is ``"constant"`` (the paper: lr fixed) or ``"cosine"`` (lr decays from ``lr``
+    to 0 over the epochs, per batch).
+    """
 
     epochs: int = 50
     batch_size: int = 64
@@ -37,6 +41,7 @@ class TrainConfig:
     seed: int = 0
     threads: int = 1
     augment: bool = True
+    schedule: str = "constant"
 
 
 @dataclass
@@ -150,6 +155,8 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
 
     if config.epochs < 1 or config.batch_size < 1 or not (config.lr > 0):
         raise ViewError("epochs, batch size and learning rate must be positive")
+    if config.schedule not in ("constant", "cosine"):
+        raise ViewError(f"unknown learning-rate schedule {config.schedule!r} (constant or cosine)")
     output = Path(output)
     if output.suffix != ".pt":
         raise ViewError(f"{output}: the weights file must end in .pt")
@@ -169,6 +176,10 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
 
     model = build_mobilenet_v2(N_CLASSES, width_mult=config.width_mult)
     opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+    steps = config.epochs * -(-len(x_train) // config.batch_size)
+    sched = torch.optim.lr_scheduler.LambdaLR(
+        opt, (lambda i: 0.5 * (1 + np.cos(np.pi * min(i, steps) / steps))) if config.schedule == "cosine"
+        else (lambda i: 1.0))
     hist = History()
     t0 = time.perf_counter()
     bar = tqdm(range(config.epochs), desc="train-view", unit="epoch", disable=not progress)
@@ -189,6 +200,7 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
             opt.zero_grad()
             loss.backward()
             opt.step()
+            sched.step()
             loss_sum += loss.item() * len(idx)
             correct += int((logits.argmax(1) == target).sum())
         hist.train_loss.append(loss_sum / len(order))
