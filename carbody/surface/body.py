@@ -122,7 +122,8 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
         check: run the OCCT shell checks (validity, free edges, tolerances) into the report.
     Returns:
         a :class:`Body`; ``report`` holds ``regions`` {name: {faces, inner_g0_mm,
-        inner_g1_deg, min_scaled_jacobian, pairs}}, ``seams`` {"a|b": {g0_mm, g1_deg}},
+        inner_g1_deg, corner_ribs, corner_g1_deg, min_scaled_jacobian, min_surface_jacobian,
+        pairs, ribs}}, ``seams`` {"a|b": {g0_mm, g1_deg}},
         ``shell`` {valid, faces, free_edges, free_loops, max_tolerance_mm, ...} and ``timings_s``.
     Raises:
         SurfaceError: a region whose loop does not close, whose projected boundary crosses

@@ -4,7 +4,8 @@
 * **G1 angle**: angle between the two faces' normals there (degrees).
 * **scaled Jacobian** of a quad net: at each corner of each control quad, the cross product of
   its two edges over the product of their lengths, signed by the face normal; 1 for a square,
-  0 for a degenerate quad, negative for a fold.
+  0 for a degenerate quad, negative for a fold; the same measure on the surface itself
+  (S_u x S_v against the face's mean normal, on a grid) tells whether the face really folds.
 
 Shared edges are found from the faces' side references: inside a region, consecutive faces
 share a rib; across regions (and the symmetry plane), faces whose sides lie on the same
@@ -69,6 +70,20 @@ def scaled_jacobian(net: np.ndarray) -> float:
     return worst
 
 
+def surface_jacobian(net: np.ndarray, n: int = 9) -> float:
+    """Smallest scaled Jacobian of the surface itself on an n x n grid: (S_u x S_v)·n̄ / (|S_u||S_v|),
+    n̄ the face's mean normal; negative where the parametrisation folds over."""
+    t = np.linspace(0, 1, n)
+    u, v = (a.ravel() for a in np.meshgrid(t, t, indexing="ij"))
+    su = np.einsum("mi,mj,ijd->md", _dbern(u), _bern(v), net)
+    sv = np.einsum("mi,mj,ijd->md", _bern(u), _dbern(v), net)
+    cr = np.cross(su, sv)
+    mean = cr.sum(axis=0)
+    mean /= np.linalg.norm(mean)
+    lengths = np.linalg.norm(su, axis=1) * np.linalg.norm(sv, axis=1)
+    return float((cr @ mean / np.maximum(lengths, 1e-300)).min())
+
+
 def inner_seams(faces: list[FacePatch]) -> np.ndarray:
     """(len(faces) - 1, 2): max G0 gap (mm) and max G1 angle (deg) across each inner rib."""
     out = []
@@ -131,4 +146,5 @@ def region_report(faces: list[FacePatch], side_turn_deg: np.ndarray | None = Non
             "inner_g1_deg": float(smooth[:, 1].max()) if len(smooth) else 0.0,
             "corner_ribs": int(corner.sum()),
             "corner_g1_deg": float(seams[corner, 1].max()) if corner.any() else 0.0,
-            "min_scaled_jacobian": min(scaled_jacobian(f.net) for f in faces)}
+            "min_scaled_jacobian": min(scaled_jacobian(f.net) for f in faces),
+            "min_surface_jacobian": min(surface_jacobian(f.net) for f in faces)}
