@@ -48,6 +48,9 @@ FULL_SET_MAX = 6000
 #: Models added to the working set per pass (most violated optimality conditions first).
 WORKING_SET_GROWTH = 400
 
+#: Models spread evenly over the library that seed the working set.
+STRIDE_SAMPLE = 2000
+
 
 @dataclass
 class KeypointBasis:
@@ -278,7 +281,7 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
     """
     M, Mc, z, b, rho = _centred(slots, uv, view)
     rows = Mc / basis.size
-    G = _solve_working_set(basis, rows, np.zeros(len(rows)), b, warm_support)
+    G = _solve_working_set(basis, rows, b, warm_support, slots, view)
     total = G.sum()
     if not total > 0:
         raise FitError("no library mix reproduces these keypoints at a positive image scale "
@@ -360,47 +363,54 @@ def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float)
     return V @ coeffs(g), g
 
 
-def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, offs: np.ndarray, b: np.ndarray,
-                       warm: np.ndarray | None) -> np.ndarray:
-    """NNLS over all models of ``basis`` with matrix A = rows·X − offs·1ᵀ (never built whole).
+def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, b: np.ndarray,
+                       warm: np.ndarray | None, slots: list[KeypointSlot], view: View) -> np.ndarray:
+    """NNLS over all models of ``basis`` with A = rows·X (X the (105, N) keypoint rows), A never
+    built whole for a large library.
 
     Args:
-        rows: (m, 105) float. offs: (m,) float. b: (m,) float.
+        rows: (2k, 105) float, the centred projection rows (divided by the basis size).
+        b: (2k,) float, the centred, scaled image keypoints.
     Returns:
         (N,) float, G ≥ 0.
     """
     n = basis.n_models
     flat = basis.X.reshape(-1, n)
+    # Each image coordinate reads three coordinates of one keypoint: gather those, not all 105.
+    rot = view_rotation(view)
+    kp = np.array([s.keypoint_id - 1 for s in slots])
+    sign = np.array([s.sign for s in slots])
+    coef = np.stack([rot[1] * sign, -rot[2] * sign], axis=1) / basis.size  # (k, 2, 3)
 
-    def columns(idx: np.ndarray) -> np.ndarray:
-        return rows @ flat[:, idx].astype(np.float64) - offs[:, None]
+    def columns(idx: np.ndarray | None) -> np.ndarray:
+        Xs = basis.X[kp] if idx is None else basis.X[:, :, idx][kp]
+        A = np.einsum("kac,kcn->kan", coef, Xs, dtype=np.float64, optimize=False)
+        A -= A.mean(axis=0)  # centring per image axis
+        return A.reshape(2 * len(kp), -1)
 
     if n <= FULL_SET_MAX:
-        A = columns(np.arange(n))
-        return nnls_active_set(A, b, passive=warm)
-    # Gradient of ½‖A·G − b‖² over every model: Aᵀ r = Xᵀ(rowsᵀ r) − (offs·r).
+        return nnls_active_set(columns(None), b, passive=warm)
+
     def gradient(r: np.ndarray) -> np.ndarray:
-        c = (rows.T @ r).astype(flat.dtype)
-        return (c @ flat).astype(np.float64) - offs @ r
+        """Aᵀ·r over every model: one pass over the (105, N) keypoint rows."""
+        return ((rows.T @ r).astype(flat.dtype) @ flat).astype(np.float64)
 
     g0 = gradient(-b)
     seed = np.argsort(g0)[:WORKING_SET_GROWTH]
-    stride = np.arange(0, n, max(1, n // 2000))
+    stride = np.arange(0, n, max(1, n // STRIDE_SAMPLE))
     W = np.unique(np.concatenate([seed, stride] + ([np.asarray(warm)] if warm is not None else [])))
     G = np.zeros(n)
+    tol = 1e-9 * max(float(np.max(np.abs(g0))), 1e-300)
     for _ in range(50):
         A = columns(W)
         gw = nnls_active_set(A, b, passive=np.flatnonzero(G[W] > 0) if G.any() else None)
         G[:] = 0.0
         G[W] = gw
-        r = A @ gw - b
-        g = gradient(r)
-        tol = 1e-9 * max(float(np.max(np.abs(g0))), 1e-300)
+        g = gradient(A @ gw - b)
         g[W] = np.inf
         viol = np.flatnonzero(g < -tol)
         if not len(viol):
             break
         add = viol[np.argsort(g[viol])[:WORKING_SET_GROWTH]]
-        keep = W[gw > 0]
-        W = np.unique(np.concatenate([keep, add, W]))
+        W = np.unique(np.concatenate([W, add]))
     return G
