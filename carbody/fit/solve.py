@@ -332,7 +332,7 @@ def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float)
     """argmin over a, g > 0 of ‖g·(am + AB·a) − b‖² + λ‖a‖² (the MAP shape and scale).
 
     For a fixed scale g the shape coefficients are a ridge solve, done for every g at once in
-    the eigenbasis of ABᵀAB; the scale is then a 1-D minimisation (grid, then bounded Brent).
+    the right singular basis of AB; the scale is then a 1-D minimisation (grid, then bounded Brent).
     Args:
         am: (m,) the mean shape's centred projection; AB: (m, q) the basis'; b: (m,) the image.
     Returns:
@@ -340,7 +340,9 @@ def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float)
     """
     from scipy.optimize import minimize_scalar
 
-    e, V = np.linalg.eigh(AB.T @ AB)
+    # Thin SVD: directions of a the image cannot see (AB·v = 0) stay at the prior mean, 0.
+    _, sv, Vt = np.linalg.svd(AB, full_matrices=False)
+    V, e = Vt.T, sv**2
     ABV = AB @ V
     y1, y2 = ABV.T @ b, ABV.T @ am
 
