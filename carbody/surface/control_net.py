@@ -54,6 +54,13 @@ MAX_RIB_SKEW = 0.2
 #: A side turning by more than this (degrees) at a rib's end is a corner.
 CORNER_DEG = 0.5
 
+#: A face side may turn at most this much (degrees); more gets an extra rib at its middle.
+MAX_SIDE_TURN_DEG = 50.0
+
+#: A rib chord may run outside its (projected) region for at most this fraction of its length
+#: (end points on a curved side sit a hair outside the polygon through the side's samples).
+MAX_OUTSIDE = 0.01
+
 #: Largest factor by which a face's side lengths ratio (A over B) may differ from the region's.
 MAX_FAN = 2.5
 
@@ -231,8 +238,50 @@ def _strictly_ordered(r: np.ndarray, fixed: np.ndarray, eps: float = 1e-6) -> bo
     return bool(np.all(before | after))
 
 
+def _keep_inside(outline: RegionOutline, samples: BoundarySamples, junc: np.ndarray,
+                 lo_all: np.ndarray | None = None, hi_all: np.ndarray | None = None,
+                 fixed_side: int | None = None) -> np.ndarray:
+    """Slide the partner end of junction ribs whose chord leaves the (projected) region.
+
+    Near a spike of the outline the correspondence can pair a junction with a point whose chord
+    cuts outside; the partner then moves along its side, between the neighbouring ribs, to the
+    nearest parameter whose chord stays inside.
+    """
+    import shapely
+
+    region = shapely.buffer(shapely.polygons(samples.dense2d), 1e-6 * np.sqrt(shapely.area(shapely.polygons(samples.dense2d))))
+    shapely.prepare(region)
+    na, nb = outline.side_a.n, outline.side_b.n
+    junc = junc.copy()
+
+    def inside(a, b):
+        pts = samples.project(np.vstack([outline.side_a.points(np.atleast_1d(a)), outline.side_b.points(np.atleast_1d(b))]))
+        k = len(np.atleast_1d(a))
+        lines = shapely.linestrings(np.stack([pts[:k], pts[k:]], axis=1))
+        outside = shapely.length(shapely.difference(lines, region)) / np.maximum(shapely.length(lines), 1e-12)
+        return outside <= MAX_OUTSIDE
+
+    for i, (a, b) in enumerate(junc):
+        if inside(a, b)[0]:
+            continue
+        lo = junc[i - 1] if i > 0 else (np.array([0.0, 0.0]) if lo_all is None else lo_all)
+        hi = junc[i + 1] if i + 1 < len(junc) else (np.array([na, nb]) if hi_all is None else hi_all)
+        a_fixed = float(a).is_integer() if fixed_side is None else fixed_side == 0
+        if a_fixed:  # the partner is on side B
+            cand = np.linspace(lo[1], hi[1], 42)[1:-1]
+            ok = inside(np.full_like(cand, a), cand)
+            if ok.any():
+                junc[i, 1] = cand[ok][np.argmin(np.abs(cand[ok] - b))]
+        else:
+            cand = np.linspace(lo[0], hi[0], 42)[1:-1]
+            ok = inside(cand, np.full_like(cand, b))
+            if ok.any():
+                junc[i, 0] = cand[ok][np.argmin(np.abs(cand[ok] - a))]
+    return junc
+
+
 def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.ndarray,
-             min_gap_mm: float) -> tuple[np.ndarray, list[str]]:
+             min_gap_mm: float, samples: BoundarySamples | None = None) -> tuple[np.ndarray, list[str]]:
     """All ribs of the net: ends, junction ribs (partners from the correspondence), skeleton ribs.
 
     A junction rib whose partner falls within ``min_gap_mm`` (arc length) of a junction of the
@@ -277,6 +326,8 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
     junctions = [(float(j), b) for j, b in on_a.items()] + free_b
     junc = np.unique(np.array(junctions).reshape(-1, 2), axis=0)
     junc = junc[np.lexsort((junc[:, 1], junc[:, 0]))]
+    if samples is not None and len(junc):
+        junc = _keep_inside(outline, samples, junc)
     if len(junc) and (np.any(np.diff(junc[:, 0]) <= 0) or np.any(np.diff(junc[:, 1]) <= 0)):
         raise AssertionError(f"{outline.name}: junction ribs cross or share an end: {junc.tolist()}")
 
@@ -306,7 +357,51 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
     kinds = ["junction"] * len(junc) + ["skeleton"] * len(skel)
     order = np.argsort(inner[:, 0], kind="stable")
     ribs = np.vstack([[0.0, 0.0], inner[order], [na, nb]])
-    return ribs, ["end"] + [kinds[i] for i in order] + ["end"]
+    kinds = ["end"] + [kinds[i] for i in order] + ["end"]
+    return _refine_turns(outline, samples, ribs, kinds, curve)
+
+
+def _turn(chain: Chain, s0: float, s1: float) -> float:
+    """Angle (degrees) the chain's tangent turns between s0 and s1 inside one piece."""
+    i = min(int(np.floor(s0 + 1e-12)), chain.n - 1)
+    d = bezier_derivs(chain.poles[i], np.linspace(s0 - i, min(s1 - i, 1.0), 5))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return float(np.degrees(np.arccos(np.clip((d[:-1] * d[1:]).sum(axis=1), -1, 1))).sum())
+
+
+def _refine_turns(outline: RegionOutline, samples: BoundarySamples | None, ribs: np.ndarray,
+                  kinds: list[str], curve: "_MonotoneCurve") -> tuple[np.ndarray, list[str]]:
+    """Add ribs where a face's side turns more than :data:`MAX_SIDE_TURN_DEG` (a quarter of a
+    wheel arch in one face bulges into it), at the middle of that side, partner from the
+    correspondence (kept strictly between the neighbouring ribs and inside the region)."""
+    ribs, kinds = [tuple(r) for r in ribs], list(kinds)
+    for _ in range(4 * len(ribs)):
+        worst, where = MAX_SIDE_TURN_DEG, None
+        for k in range(len(ribs) - 1):
+            (a0, b0), (a1, b1) = ribs[k], ribs[k + 1]
+            for side, turn in ((0, _turn(outline.side_a, a0, a1)), (1, _turn(outline.side_b, b0, b1))):
+                if turn > worst:
+                    worst, where = turn, (k, side)
+        if where is None:
+            break
+        k, side = where
+        (a0, b0), (a1, b1) = ribs[k], ribs[k + 1]
+        if side == 0:
+            a = (a0 + a1) / 2
+            b = curve.partner_of_a(a)
+            b = b if b0 < b < b1 else (b0 + b1) / 2
+        else:
+            b = (b0 + b1) / 2
+            a = curve.partner_of_b(b)
+            a = a if a0 < a < a1 else (a0 + a1) / 2
+        new = np.array([[a, b]])
+        if samples is not None:
+            lo, hi = np.array([a0, b0]), np.array([a1, b1])
+            moved = _keep_inside(outline, samples, new, lo, hi, fixed_side=side)
+            new = moved
+        ribs.insert(k + 1, tuple(new[0]))
+        kinds.insert(k + 1, "refine")
+    return np.array(ribs), kinds
 
 
 # --------------------------------------------------------------------------- rib control curves
@@ -516,7 +611,7 @@ def region_net(outline: RegionOutline, samples: BoundarySamples, pairs: list[Opt
         skel = skel[skew <= MAX_RIB_SKEW]
     skel = _monotone(skel, na, nb)
     corr = dtw_correspondence(outline, samples, skel)
-    ribs, kinds = net_ribs(outline, skel, corr, min_gap_mm)
+    ribs, kinds = net_ribs(outline, skel, corr, min_gap_mm, samples)
     rows = rib_rows(outline, ribs)
     turn = np.array([max(side_turn_deg(outline.side_a, a), side_turn_deg(outline.side_b, b)) for a, b in ribs])
     return RegionNet(outline.name, ribs, rows, kinds, patches(outline, ribs, rows), corr, turn)

@@ -280,6 +280,7 @@ class BoundarySamples:
             running from side B to side A).
         origin, axes: plane origin (3,) mm and (3, 3) rows e1, e2, normal (normal = outward).
         dense2d: (m, 2) the projected boundary densely sampled (for drawing and checks).
+        scale: normalised units per mm.
     """
 
     points3d: np.ndarray
@@ -290,6 +291,11 @@ class BoundarySamples:
     origin: np.ndarray
     axes: np.ndarray
     dense2d: np.ndarray
+    scale: float = 1.0
+
+    def project(self, points3d: np.ndarray) -> np.ndarray:
+        """(n, 3) mm -> (n, 2) plane coordinates, normalised units."""
+        return (np.asarray(points3d) - self.origin) @ self.axes[:2].T * self.scale
 
 
 def _sample_piece(poles: np.ndarray, spacing: float) -> np.ndarray:
@@ -354,7 +360,7 @@ def boundary_samples(outline: RegionOutline, wheelbase_mm: float,
         order = np.r_[0, np.arange(len(pts) - 1, 0, -1)]
         pts, p2, side, s = pts[order], p2[order], side[order], s[order]
         d2 = d2[::-1]
-    return BoundarySamples(pts, p2, outward_normals_2d(p2), side, s, origin, axes, d2)
+    return BoundarySamples(pts, p2, outward_normals_2d(p2), side, s, origin, axes, d2, scale)
 
 
 def outward_normals_2d(points2d: np.ndarray) -> np.ndarray:
