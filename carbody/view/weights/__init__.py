@@ -1,0 +1,1 @@
+"""Trained weights of the view classifier (package data, loaded by carbody.view.predict)."""
