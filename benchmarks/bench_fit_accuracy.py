@@ -140,7 +140,8 @@ def main(argv=None) -> int:
     n_templates = len(load_library().template_names)
     templates = [0, 5, 9] if args.quick else list(range(n_templates))
     angles = (0, 30, 90, 150, 180) if args.quick else ANGLES
-    cases = [("paper", None, 0.0, False), ("gauss", None, 0.0, False),
+    cases = [("paper", None, 0.0, False), ("gauss", None, 0.0, False), ("mixture", None, 0.0, False),
+             ("mixture", None, OFFSET_DEG, True),
              ("paper", None, OFFSET_DEG, False), ("paper", None, OFFSET_DEG, True),
              ("gauss", None, OFFSET_DEG, False), ("gauss", None, OFFSET_DEG, True)]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []

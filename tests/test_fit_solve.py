@@ -126,3 +126,16 @@ def test_fit_result_reports(library):
     kps = res.keypoints_mm()
     assert len(kps) >= 35 and all(len(v) == 3 for v in kps.values())
     assert set(keypoint_slots()) >= set(kps)
+
+
+def test_mixture_prior_fits_a_left_out_car(library, topology):
+    template = "Toyota Camry XV70"
+    t = library.template_names.index(template)
+    loo = library.without(template)
+    truth = library.points(_original(library, t))
+    slots, uv = _observe(truth, View(30), noise=1.0)
+    res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, 30, loo, wheelbase_mm=1000.0,
+                        method="mixture", refine=False)
+    kp = topology.keypoint_point_indices
+    err = np.linalg.norm(res.wireframe.control_points[kp] - truth[kp], axis=1) * library.template_wheelbase_mm[t] / 1000
+    assert err.max() < 60 and res.solution.residual_px.mean() < 3

@@ -21,8 +21,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="real wheelbase, mm (default: the fitted mix of the templates' own)")
     p.add_argument("--exclude-template", action="append", default=[], metavar="NAME",
                    help="drop a template and its expansions from the library (repeatable)")
-    p.add_argument("--method", choices=("gauss", "paper"), default="gauss",
-                   help="gauss: Gaussian shape prior (default); paper: plain ΣH=1, 0≤H≤1")
+    p.add_argument("--method", choices=("gauss", "paper", "mixture"), default="gauss",
+                   help="gauss: Gaussian shape prior (default); paper: the paper's plain ΣH=1, "
+                        "0≤H≤1; mixture: one Gaussian per template (slower)")
     p.add_argument("--no-refine", action="store_true", help="keep the given view as it is")
     p.add_argument("--output", "-o", required=True, help="wireframe STEP file to write")
     p.add_argument("--overlay", help="PNG: photo + annotated (red) / reprojected (green) keypoints + wireframe")

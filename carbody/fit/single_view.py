@@ -28,13 +28,14 @@ _PREPARED: dict[tuple, object] = {}
 def prepared(library: Library, method: str):
     """The library's :class:`KeypointBasis` (``"paper"``) or :class:`ShapeModel` (``"gauss"``),
     built once per library and method."""
+    method = "gauss" if method == "mixture" else method  # same shape model
     key = (id(library.S), library.S.shape, method)
     if key not in _PREPARED:
         if len(_PREPARED) > 8:
             _PREPARED.clear()
         idx = load_topology().keypoint_point_indices
         _PREPARED[key] = (library.S, KeypointBasis.from_shapes(library.S, idx) if method == "paper"
-                          else ShapeModel.from_shapes(library.S, idx))
+                          else ShapeModel.from_shapes(library.S, idx, groups=library.template_index))
     return _PREPARED[key][1]
 
 
@@ -48,7 +49,7 @@ class FitResult:
         solution: the mix at the refined view (normalised units).
         slots: the annotated keypoints; ``uv`` their pixels (k, 2).
         wheelbase_mm: the wheelbase the model was scaled to.
-        method: ``"gauss"`` or ``"paper"``.
+        method: ``"gauss"``, ``"paper"`` or ``"mixture"``.
         library: the library used (names for the report).
     """
 
@@ -123,8 +124,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         library: the model library (default :func:`carbody.library.load_library`).
         image_size: (width, height) px; keypoints off the image are refused.
         wheelbase_mm: real wheelbase; default the fitted mix of the templates' own.
-        method: ``"gauss"`` (Gaussian shape prior, default) or ``"paper"`` (plain ΣH = 1, 0 ≤ H ≤ 1).
-        prior_weight: λ of ``"gauss"``.
+        method: ``"gauss"`` (Gaussian shape prior, default), ``"paper"`` (plain ΣH = 1,
+            0 ≤ H ≤ 1) or ``"mixture"`` (one Gaussian per template); see :mod:`carbody.fit.solve`.
+        prior_weight: λ of ``"gauss"`` and ``"mixture"``.
         refine: refine azimuth, elevation and roll around ``view``.
         name: the car's name (STEP product).
     Raises:
@@ -160,7 +162,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             return sol
     else:
         def solve_at(v: View) -> MixSolution:
-            return solve_gauss(model, idx, slots, uv, v, prior_weight)
+            return solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture")
 
     if refine:
         refined, sol = refine_view(solve_at, view)
