@@ -8,7 +8,7 @@ counted by its mirror class), per-elevation accuracy, inference time per image o
 the training time stored in the weights. Writes ``benchmarks/figures/view_confusion.png``.
 
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
-    python benchmarks/bench_view.py --ablation [--epochs 15] [--count 1200]
+    python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
 
 ``--ablation`` renders one training set per variation switched off (background, colour,
 elevation/camera) plus the full one, at equal size, trains each for the same epochs, and tests
@@ -128,6 +128,7 @@ def main_eval(args) -> None:
     if args.dataset:
         dataset = Path(args.dataset)
         rows = [r for r in read_manifest(dataset) if r["split"] == "val"]
+        val_templates = sorted({r.get("template", "?") for r in rows})
     else:
         dataset = evaluation_set(Path(tempfile.mkdtemp(prefix="carbody-view-eval-")) / "set", args.count,
                                  args.seed, val_templates)
@@ -136,7 +137,8 @@ def main_eval(args) -> None:
     probs = classify(dataset, args.weights, rows)
     batch_ms = (time.perf_counter() - t) / len(rows) * 1000
     s = scores(rows, probs)
-    confusion_png(rows, probs, FIGURES / "view_confusion.png",
+    confusion = Path(args.confusion) if args.confusion else FIGURES / "view_confusion.png"
+    confusion_png(rows, probs, confusion,
                   f"held-out cars ({', '.join(val_templates)}), {len(rows)} renders")
     ms = inference_ms(dataset / rows[0]["file"], args.weights)
     elev = np.array([float(r["elevation_deg"]) for r in rows])
@@ -165,7 +167,7 @@ def main_eval(args) -> None:
     print(f"| inference ms/image, with mirror averaging, 90th percentile | {ms['mirror_avg_p90_ms']:.2f} |")
     print(f"| inference ms/image, batches of 64 incl. decode | {batch_ms:.2f} |")
     print(f"| training time (s), from the weights file | {hist['seconds']:.0f} |")
-    print(f"confusion matrix: {(FIGURES / 'view_confusion.png').relative_to(ROOT)}")
+    print(f"confusion matrix: {confusion}")
 
 
 def main_ablation(args) -> None:
@@ -181,9 +183,9 @@ def main_ablation(args) -> None:
         "none (plain renders)": Variation(background=False, colour=False, elevation=False),
     }
     # Test set: full variation, the held-out cars, a seed no training set uses.
-    test_dir = work / "test"
+    test_dir = work / f"test{args.test_count}"
     if not (test_dir / "manifest.csv").exists():
-        render_dataset(test_dir, count=args.count // 2, seed=args.seed, bodies_per_template=2,
+        render_dataset(test_dir, count=args.test_count, seed=args.seed, bodies_per_template=2,
                        progress=True, vary=Variation())
     test_rows = [r for r in read_manifest(test_dir) if r["split"] == "val"]
     results = {}
@@ -191,7 +193,7 @@ def main_ablation(args) -> None:
         d = work / ("v_" + "".join(c for c in name if c.isalnum()))
         if not (d / "manifest.csv").exists():
             render_dataset(d, count=args.count, seed=args.seed, bodies_per_template=2, vary=vary, progress=True)
-        w = d / "weights.pt"
+        w = d / f"weights_e{args.epochs}.pt"
         if not w.exists():
             hist = train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1), progress=True)
             secs = hist.seconds
@@ -200,8 +202,9 @@ def main_ablation(args) -> None:
         probs = classify(test_dir, str(w), test_rows)
         results[name] = (scores(test_rows, probs), secs)
         print(name, results[name], flush=True)
-    print(f"ablation: {args.count} training renders per variant (train split only used for training), "
-          f"{args.epochs} epochs, tested on {len(test_rows)} full-variation renders of the held-out cars")
+    print(f"ablation: {args.count} renders per variant (its training split, about 80 %, used), "
+          f"{args.epochs} epochs (cosine lr), tested on {len(test_rows)} full-variation renders of the "
+          f"held-out cars ({', '.join(sorted({r['template'] for r in test_rows}))})")
     print("| training renders | top-1 (24) | within ±15° | front/rear confusions |\n|---|---|---|---|")
     for name, (s, _) in results.items():
         print(f"| {name} | {s['top1']:.3f} | {s['within15']:.3f} | {s['front_rear_confusions']:.3f} |")
@@ -213,8 +216,11 @@ def main() -> None:
     ap.add_argument("--dataset", default=None, help="evaluate the validation split of this data set instead")
     ap.add_argument("--count", type=int, default=480, help="images to render (default 480; ablation 1200)")
     ap.add_argument("--seed", type=int, default=1234)
+    ap.add_argument("--confusion", default=None, help="confusion matrix PNG (default benchmarks/figures/)")
     ap.add_argument("--ablation", action="store_true")
-    ap.add_argument("--epochs", type=int, default=15, help="ablation: epochs per variant")
+    ap.add_argument("--epochs", type=int, default=25, help="ablation: epochs per variant")
+    ap.add_argument("--test-count", type=int, default=2400,
+                    help="ablation: renders of which the held-out cars' share is the test set")
     ap.add_argument("--workdir", default=None, help="ablation: folder to keep data sets and weights")
     args = ap.parse_args()
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
