@@ -26,13 +26,15 @@ ROLL_RANGE_DEG = 20.0
 AZIMUTH_SCAN_DEG = (-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0)
 
 
-def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations: int = 60):
+def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations: int = 60,
+                free: tuple[str, ...] = ("azimuth", "elevation", "roll")):
     """The view near ``given`` whose solve has the least residual.
 
     Args:
         solve_at: view → a solution with ``residual_vector`` ((m,) float) and ``cost``.
         given: the starting view.
         max_evaluations: budget of solves for the continuous stage.
+        free: the angles refined (the others stay as given).
     Returns:
         (refined View, its solution).
     """
@@ -67,10 +69,18 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
         sol = cache[key]
         return best.residual_vector * 10.0 if sol is None else sol.residual_vector
 
-    x0 = np.clip([best_view.azimuth, best_view.elevation, best_view.roll], lo + 1e-9, hi - 1e-9)
-    fit = least_squares(residual, x0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4,
-                        max_nfev=max_evaluations, method="trf")
-    refined = View(*fit.x)
+    mask = np.array([n in free for n in ("azimuth", "elevation", "roll")])
+    start = np.array([best_view.azimuth, best_view.elevation, best_view.roll])
+
+    def full(x: np.ndarray) -> np.ndarray:
+        out = start.copy()
+        out[mask] = x
+        return out
+
+    x0 = np.clip(start, lo + 1e-9, hi - 1e-9)[mask]
+    fit = least_squares(lambda x: residual(full(x)), x0, bounds=(lo[mask], hi[mask]), x_scale=1.0,
+                        diff_step=1e-4, max_nfev=max_evaluations, method="trf")
+    refined = View(*full(fit.x))
     sol = solve_at(refined)
     if sol.cost <= best.cost:
         return refined, sol
