@@ -1,7 +1,6 @@
 """Keypoint files (project JSON, COCO, labelme), mirror names, checks, visibility from geometry."""
 import json
 
-import numpy as np
 import pytest
 
 from carbody.errors import KeypointError

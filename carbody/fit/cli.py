@@ -90,6 +90,9 @@ def run_fit(args: argparse.Namespace) -> int:
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm -> {args.output}")
+    if report and report["annotated_but_hidden"]:
+        print(f"note: by the fitted geometry {', '.join(report['annotated_but_hidden'])} may be "
+              "hidden at this view (check the left/right names)")
     if report and "error_mm_mean" in report:
         print(f"3D keypoint error vs {report['truth']}: mean {report['error_mm_mean']:.1f} mm, "
               f"max {report['error_mm_max']:.1f} mm (at its wheelbase: mean "

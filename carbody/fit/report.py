@@ -39,7 +39,10 @@ def keypoint_errors_mm(fitted: Wireframe, truth: Wireframe, at_truth_wheelbase: 
 
 def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
     """The report as a JSON-ready dict (see module docstring); lengths in mm, residuals in px."""
+    from carbody.fit.visibility import visible_keypoints
+
     res = result.residuals_px()
+    visible = visible_keypoints(result.view, result.wireframe.control_points)
     report = {
         "method": result.method,
         "given_view": result.given_view.as_dict(),
@@ -52,6 +55,8 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "residual_px": res,
         "residual_px_mean": float(np.mean(list(res.values()))),
         "residual_px_max": float(np.max(list(res.values()))),
+        "visible_at_refined_view": visible,
+        "annotated_but_hidden": [s.name for s in result.slots if s.name not in visible],
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
     }

@@ -12,7 +12,7 @@ import numpy as np
 
 from carbody.fit.camera import View, camera_direction, view_rotation
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
-from carbody.topology import POINTS_PER_CURVE, Topology, load_topology
+from carbody.topology import Topology, load_topology
 
 #: A region faces the camera when n·d exceeds this: a panel seen edge-on (a door from straight
 #: ahead) has its points on the silhouette, where nobody can mark them.
