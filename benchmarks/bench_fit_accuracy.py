@@ -47,7 +47,7 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
 
 
 def run_template(args) -> list[dict]:
-    t, cases, lambdas, angles = args
+    t, cases, lambdas, angles, elevation = args
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
     from carbody.topology import load_topology
@@ -62,14 +62,16 @@ def run_template(args) -> list[dict]:
     rng = np.random.default_rng(1000 + t)
     rows = []
     for azimuth in angles:
-        kps, size = synthetic_view(truth, azimuth, rng)
+        kps, size = synthetic_view(truth, azimuth, rng, elevation)
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
         for method, lam, offset, refine in cases + [("gauss", l, 0.0, False) for l in lambdas]:
             t0 = time.perf_counter()
             kw = {"prior_weight": lam} if lam is not None else {}
-            res = fit_wireframe(kps, azimuth + offset, loo, image_size=size, wheelbase_mm=wb,
-                                method=method, refine=refine, **kw)
+            from carbody.fit.camera import View
+
+            res = fit_wireframe(kps, View(azimuth + offset, elevation), loo, image_size=size,
+                                wheelbase_mm=wb, method=method, refine=refine, **kw)
             dt = time.perf_counter() - t0
             err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
             rows.append({"template": name, "azimuth": azimuth, "method": method, "lambda": lam,
@@ -134,6 +136,9 @@ def main(argv=None) -> int:
     ap.add_argument("--sweep", action="store_true", help="also scan the gauss prior weight")
     ap.add_argument("--json", help="write every row as JSON")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--elevation", type=float, default=0.0,
+                    help="camera elevation of the synthetic views (degrees; given to the fit)")
+    ap.add_argument("--known-only", action="store_true", help="only the view-known cases")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -144,12 +149,16 @@ def main(argv=None) -> int:
              ("mixture", None, OFFSET_DEG, True),
              ("paper", None, OFFSET_DEG, False), ("paper", None, OFFSET_DEG, True),
              ("gauss", None, OFFSET_DEG, False), ("gauss", None, OFFSET_DEG, True)]
+    if args.known_only:
+        cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
-        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles) for t in templates]) for r in part]
+        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation)
+                                                         for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
-          f"{NOISE_PX:g} px noise on a {IMAGE_WIDTH} px wide image ({time.perf_counter() - t0:.0f} s)\n")
+          f"elevation {args.elevation:g}°, {NOISE_PX:g} px noise on a {IMAGE_WIDTH} px wide image "
+          f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
     for label in dict.fromkeys(case_label(r) for r in rows):
         if "λ=" in label:
