@@ -252,3 +252,22 @@ def test_rendered_bodies_have_wheels_lamps_and_grille_in_place(library, template
         assert v[k][:, 0].min() < 0 < v[k][:, 0].max()                           # both sides
     tyre_z = v["tyre"][:, 2]
     assert tyre_z.min() == pytest.approx(-spec.tyre_radius_mm, rel=0.01)
+
+
+def test_a_body_that_cannot_be_surfaced_is_skipped_and_recorded(tmp_path):
+    import json
+
+    from carbody.errors import SurfaceError
+    from carbody.view.dataset import read_manifest, render_dataset
+
+    def picky(wireframe):
+        if wireframe.name.startswith("toyota"):
+            raise SurfaceError("door: outline crosses itself")
+        return toy_body(wireframe)
+
+    render_dataset(tmp_path / "s", count=24, seed=0, bodies_per_template=1, surface_body=picky, progress=False,
+                   templates=["Volvo V60", "Toyota Camry XV70"])
+    rows = read_manifest(tmp_path / "s")
+    meta = json.loads((tmp_path / "s" / "dataset.json").read_text())
+    assert len(rows) == 24 and {r["template"] for r in rows} == {"Volvo V60"}
+    assert meta["skipped_bodies"][0]["body"].startswith("toyota") and "door" in meta["skipped_bodies"][0]["reason"]

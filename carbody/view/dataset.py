@@ -31,7 +31,7 @@ from typing import Callable
 
 import numpy as np
 
-from carbody.errors import CarbodyError, ViewError
+from carbody.errors import ViewError
 from carbody.view.labels import CLASS_ANGLES_DEG, N_CLASSES
 
 #: Side of the stored images, pixels (the network resizes to 64).
@@ -406,10 +406,12 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
         n_img += carry
         try:
             meshes = body_meshes(spec, surface_body)
-        except CarbodyError as exc:   # a body our surfacing refuses: its images go to the next body
+        except Exception as exc:  # noqa: BLE001  a body surfacing fails on: its images go to the next body
+            # Any failure (a refused region or a bug in a surfacing stage) skips one body and is
+            # recorded in dataset.json; one bad expansion must not stop a 3000-image render.
             if b == len(bodies) - 1:
                 raise ViewError(f"the last body {spec.body_id} cannot be surfaced: {exc}") from None
-            skipped.append({"body": spec.body_id, "reason": str(exc)})
+            skipped.append({"body": spec.body_id, "reason": f"{type(exc).__name__}: {exc}"})
             carry = n_img
             continue
         carry = 0
