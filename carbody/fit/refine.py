@@ -1,9 +1,13 @@
 """Continuous view refinement around the given (classified) angle.
 
-The solve gives, at any view, the best library mix and its residual. The view is refined by
-minimising that residual over azimuth, elevation and roll: a coarse azimuth scan around the given
-angle (the residual is not convex far from the optimum) followed by bounded Gauss–Newton
-(trust-region reflective least squares) on all three angles, the mix re-solved at every step.
+The solve gives, at any view, the best library mix and its residual. The view is refined over
+azimuth, elevation and roll: a coarse azimuth scan around the given angle (the objective is not
+convex far from the optimum), then a continuous search, the mix re-solved at every step. The
+objective is the solve's evidence (−log marginal likelihood of the view, the shape integrated
+out) when it has one (the Gaussian-prior methods; Nelder–Mead), else its residual (the paper's
+solve; bounded Gauss–Newton, trust-region reflective least squares). In an orthographic image
+the azimuth trades off against the car's depth, so the residual alone prefers views where the
+shape can bend to fit; the evidence charges for that freedom.
 """
 from __future__ import annotations
 
@@ -28,10 +32,11 @@ AZIMUTH_SCAN_DEG = (-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0)
 
 def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations: int = 60,
                 free: tuple[str, ...] = ("azimuth", "elevation", "roll")):
-    """The view near ``given`` whose solve has the least residual.
+    """The view near ``given`` whose solve has the least evidence (or residual).
 
     Args:
-        solve_at: view → a solution with ``residual_vector`` ((m,) float) and ``cost``.
+        solve_at: view → a solution with ``residual_vector`` ((m,) float), ``cost`` and
+            ``evidence`` (float or None).
         given: the starting view.
         max_evaluations: budget of solves for the continuous stage.
         free: the angles refined (the others stay as given).
@@ -43,6 +48,10 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     from carbody.errors import FitError
 
     best_view, best = given, solve_at(given)
+
+    def score(sol) -> float:
+        return sol.evidence if getattr(sol, "evidence", None) is not None else sol.cost
+
     for d in AZIMUTH_SCAN_DEG:
         if d == 0:
             continue
@@ -51,7 +60,7 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
             sol = solve_at(v)
         except FitError:
             continue
-        if sol.cost < best.cost:
+        if score(sol) < score(best):
             best_view, best = v, sol
 
     lo = np.array([given.azimuth - AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[0], given.roll - ROLL_RANGE_DEG])
@@ -59,15 +68,14 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     lo[1], hi[1] = min(lo[1], given.elevation), max(hi[1], given.elevation)
     cache: dict[tuple, object] = {}
 
-    def residual(x: np.ndarray) -> np.ndarray:
+    def solved(x: np.ndarray):
         key = tuple(np.round(x, 12))
         if key not in cache:
             try:
                 cache[key] = solve_at(View(*x))
             except FitError:
                 cache[key] = None
-        sol = cache[key]
-        return best.residual_vector * 10.0 if sol is None else sol.residual_vector
+        return cache[key]
 
     mask = np.array([n in free for n in ("azimuth", "elevation", "roll")])
     start = np.array([best_view.azimuth, best_view.elevation, best_view.roll])
@@ -78,10 +86,30 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
         return out
 
     x0 = np.clip(start, lo + 1e-9, hi - 1e-9)[mask]
-    fit = least_squares(lambda x: residual(full(x)), x0, bounds=(lo[mask], hi[mask]), x_scale=1.0,
-                        diff_step=1e-4, max_nfev=max_evaluations, method="trf")
-    refined = View(*full(fit.x))
+    if getattr(best, "evidence", None) is not None:
+        from scipy.optimize import minimize
+
+        def objective(x: np.ndarray) -> float:
+            y = full(x)
+            if np.any(y < lo) or np.any(y > hi):
+                return np.inf
+            sol = solved(y)
+            return np.inf if sol is None else sol.evidence
+
+        simplex = np.vstack([x0] + [x0 + 2.0 * np.eye(len(x0))[i] for i in range(len(x0))])
+        found = minimize(objective, x0, method="Nelder-Mead",
+                         options={"initial_simplex": simplex, "xatol": 0.01, "fatol": 1e-3,
+                                  "maxfev": 3 * max_evaluations})
+        refined = View(*full(found.x))
+    else:
+        def residual(x: np.ndarray) -> np.ndarray:
+            sol = solved(full(x))
+            return best.residual_vector * 10.0 if sol is None else sol.residual_vector
+
+        fit = least_squares(residual, x0, bounds=(lo[mask], hi[mask]), x_scale=1.0,
+                            diff_step=1e-4, max_nfev=max_evaluations, method="trf")
+        refined = View(*full(fit.x))
     sol = solve_at(refined)
-    if sol.cost <= best.cost:
+    if score(sol) <= score(best):
         return refined, sol
     return best_view, best

@@ -160,6 +160,8 @@ class MixSolution:
         cost: the minimised objective (data + prior), dimensionless.
         residual_vector: the stacked residuals whose squared norm is ``cost``.
         support: models with positive weight (``"paper"``; used to warm-start the next solve).
+        evidence: −log marginal likelihood of the view with the shape integrated out, up to a
+            constant (``"gauss"``/``"mixture"``; the view refinement minimises it).
     """
 
     shape: np.ndarray | None
@@ -170,6 +172,7 @@ class MixSolution:
     cost: float
     residual_vector: np.ndarray
     support: np.ndarray | None = None
+    evidence: float | None = None
 
 
 def nnls_active_set(A: np.ndarray, b: np.ndarray, passive: np.ndarray | None = None,
@@ -338,15 +341,16 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     if mixture and model.group_means is not None:
         # One Gaussian per template centre, shared covariance; the posterior mean of the mixture.
         fits = [_map_coefficients(am + AB @ c, AB, b, prior_weight) for c in model.group_means]
-        costs = np.array([f[2] for f in fits])
-        w = np.exp(-(costs - costs.min()) / (2.0 * prior_weight))
+        nle = np.array([f[3] for f in fits])
+        w = np.exp(-(nle - nle.min()))
+        evidence = float(nle.min() - np.log(w.mean()))
         w /= w.sum()
         delta = sum(wi * f[0] for wi, f in zip(w, fits))
         a = w @ model.group_means + delta
         g = float(sum(wi * f[1] for wi, f in zip(w, fits)))
         prior_part = np.sqrt(prior_weight) * delta
     else:
-        a, g, _ = _map_coefficients(am, AB, b, prior_weight)
+        a, g, _, evidence = _map_coefficients(am, AB, b, prior_weight)
         prior_part = np.sqrt(prior_weight) * a
     if not g > 0:
         raise FitError("no shape reproduces these keypoints at a positive image scale "
@@ -360,10 +364,10 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         H = 1.0 / len(model.to_weights) + model.to_weights @ a
     return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
-                       residual_vector=rvec)
+                       residual_vector=rvec, evidence=evidence)
 
 
-def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float) -> tuple[np.ndarray, float, float]:
+def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float) -> tuple[np.ndarray, float, float, float]:
     """argmin over a, g > 0 of ‖g·(am + AB·a) − b‖² + λ‖a‖² (the MAP shape and scale).
 
     For a fixed scale g the shape coefficients are a ridge solve, done for every g at once in
@@ -371,7 +375,10 @@ def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float)
     Args:
         am: (m,) the mean shape's centred projection; AB: (m, q) the basis'; b: (m,) the image.
     Returns:
-        (a (q,), g, the minimised cost).
+        (a (q,), g, the minimised cost, −log evidence). With noise variance λ (the prior on a is
+        N(0, I)), −log p(b) = cost/(2λ) + ½·log det(I + g²·ABᵀAB/λ) + const: the log-det term
+        charges a view for every shape direction it lets the data move, so comparing views by
+        it does not favour views where the shape can absorb a wrong camera.
     """
     from scipy.optimize import minimize_scalar
 
@@ -397,7 +404,8 @@ def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float)
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
     g = float(minimize_scalar(cost, bounds=(lo, hi), method="bounded",
                               options={"xatol": 1e-10 * grid[i]}).x)
-    return V @ coeffs(g), g, cost(g)
+    c = cost(g)
+    return V @ coeffs(g), g, c, c / (2 * lam) + 0.5 * float(np.sum(np.log1p(g * g * e / lam)))
 
 
 def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, b: np.ndarray,
