@@ -271,3 +271,17 @@ def test_a_body_that_cannot_be_surfaced_is_skipped_and_recorded(tmp_path):
     meta = json.loads((tmp_path / "s" / "dataset.json").read_text())
     assert len(rows) == 24 and {r["template"] for r in rows} == {"Volvo V60"}
     assert meta["skipped_bodies"][0]["body"].startswith("toyota") and "door" in meta["skipped_bodies"][0]["reason"]
+
+
+@pytest.mark.slow
+def test_cli_renders_a_real_dataset_and_trains_on_it(tmp_path):
+    """End to end through the commands on real surfaced bodies: render-dataset, train-view, view."""
+    pytest.importorskip("carbody.surface")
+    run_cli("render-dataset", str(tmp_path / "ds"), "--count", "240", "--bodies-per-template", "1", check=True)
+    rows = (tmp_path / "ds" / "manifest.csv").read_text().splitlines()
+    assert len(rows) == 241
+    out = run_cli("train-view", str(tmp_path / "ds"), "-o", str(tmp_path / "w.pt"), "--epochs", "3", check=True)
+    assert "validation accuracy" in out.stdout and (tmp_path / "w.png").exists()
+    img = tmp_path / "ds" / rows[1].split(",")[0]
+    out = run_cli("view", str(img), "--weights", str(tmp_path / "w.pt"), "--json", check=True)
+    assert json.loads(out.stdout)["class_index"] in range(N_CLASSES)
