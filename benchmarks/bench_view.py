@@ -189,7 +189,10 @@ def main_ablation(args) -> None:
                        progress=True, vary=Variation())
     test_rows = [r for r in read_manifest(test_dir) if r["split"] == "val"]
     results = {}
+    only = [x.strip() for x in args.only.split(",")] if args.only else list(variants)
     for name, vary in variants.items():
+        if name not in only:
+            continue
         d = work / ("v_" + "".join(c for c in name if c.isalnum()))
         if not (d / "manifest.csv").exists():
             render_dataset(d, count=args.count, seed=args.seed, bodies_per_template=2, vary=vary, progress=True)
@@ -222,6 +225,7 @@ def main() -> None:
     ap.add_argument("--test-count", type=int, default=2400,
                     help="ablation: renders of which the held-out cars' share is the test set")
     ap.add_argument("--workdir", default=None, help="ablation: folder to keep data sets and weights")
+    ap.add_argument("--only", default=None, help="ablation: comma-separated variant names to run")
     args = ap.parse_args()
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
     if args.ablation:

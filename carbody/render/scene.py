@@ -38,7 +38,7 @@ def as_rgb(colour: Any) -> RGB:
         c = np.asarray(colour, dtype=float).reshape(-1)
         if c.shape != (3,) or not np.all(np.isfinite(c)) or c.min() < 0:
             raise ValueError
-        if c.max() > 1.0 or np.issubdtype(np.asarray(colour).dtype, np.integer) and c.max() > 1:
+        if c.max() > 1.0:          # 0-255 convention
             c = c / 255.0
         if c.max() > 1.0:
             raise ValueError
