@@ -11,6 +11,7 @@ The CLI ``carbody reconstruct`` is a thin layer over :func:`reconstruct` and
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import shutil
@@ -128,7 +129,10 @@ class Reconstruction:
         ]
         if "error_mm_mean" in fit:
             lines.append(f"3D keypoint error vs truth: mean {fit['error_mm_mean']:.1f} mm, "
-                         f"max {fit['error_mm_max']:.1f} mm")
+                         f"max {fit['error_mm_max']:.1f} mm at the fitted wheelbase; "
+                         f"mean {fit['error_mm_at_truth_wheelbase_mean']:.1f} mm, "
+                         f"max {fit['error_mm_at_truth_wheelbase_max']:.1f} mm at the true one "
+                         f"({fit['truth_wheelbase_mm']:.0f} mm)")
         s = report["surfaces"]
         lines.append(f"body: {s['faces']} Bezier faces in one shell, valid={s.get('valid')}, "
                      f"open only at {s.get('free_closed_loops')} closed bottom loop(s)")
@@ -213,6 +217,14 @@ def write_assembly(path: Path, result: Reconstruction) -> Path:
     return atomic_write(path, lambda tmp: assy.export(tmp, "STEP"))
 
 
+@functools.cache
+def default_library():
+    """The shipped library, loaded once per process (the fit keeps its shape model per library)."""
+    from carbody.library import load_library
+
+    return load_library()
+
+
 def _read_inputs(image, keypoints):
     """(RGB image, its path or None, annotation) with sizes checked against each other."""
     from carbody.fit.keypoints_io import Annotation, read_keypoints
@@ -280,7 +292,7 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     start = stage("fit")
     from carbody.fit.camera import check_azimuth
 
-    fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library,
+    fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                         image_size=(w, h), wheelbase_mm=wheelbase_mm, name=name)
     timings["fit"] = time.perf_counter() - start
 
