@@ -117,28 +117,33 @@ def read_image(image) -> np.ndarray:
     return np.ascontiguousarray(arr)
 
 
-@functools.lru_cache(maxsize=4)
 def load_classifier(weights: str | None = None):
     """(model in eval mode, metadata dict) from a weights file (default: the shipped one).
+
+    The network is built once per file and process (and again when the file changes).
 
     Raises:
         ViewError: missing or unreadable weights file.
     """
-    import torch
-
-    from carbody.view.network import build_mobilenet_v2
-
     path = Path(weights) if weights else SHIPPED_WEIGHTS
     if not path.is_file():
         raise ViewError(f"{path}: no such weights file"
                         + (" (the package ships without trained weights)" if not weights else ""))
+    return _load_classifier(str(path), path.stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=4)
+def _load_classifier(path_text: str, mtime_ns: int):
+    import torch
+
+    from carbody.view.network import build_mobilenet_v2
+
+    path = Path(path_text)
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
         model = build_mobilenet_v2(int(payload["num_classes"]), width_mult=float(payload.get("width_mult", 1.0)))
         model.load_state_dict({k: v.float() if v.is_floating_point() else v
                                for k, v in payload["state_dict"].items()})
-    except ViewError:
-        raise
     except Exception as exc:  # a corrupt file can fail in many ways inside torch
         raise ViewError(f"{path}: not a view-classifier weights file ({type(exc).__name__})") from None
     if int(payload["num_classes"]) != N_CLASSES:
