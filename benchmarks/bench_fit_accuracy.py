@@ -30,7 +30,7 @@ OFFSET_DEG = 10.0
 
 def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, elevation: float = 0.0):
     """Keypoints of a normalised (280, 3) car seen at a view: ({name: (u, v)}, (width, height))."""
-    from carbody.fit.camera import View, project
+    from carbody.camera import View, project
     from carbody.fit.visibility import visible_slots
 
     view = View(azimuth, elevation)
@@ -68,7 +68,7 @@ def run_template(args) -> list[dict]:
         for method, lam, offset, refine in cases + [("gauss", l, 0.0, False) for l in lambdas]:
             t0 = time.perf_counter()
             kw = {"prior_weight": lam} if lam is not None else {}
-            from carbody.fit.camera import View
+            from carbody.camera import View
 
             res = fit_wireframe(kps, View(azimuth + offset, elevation), loo, image_size=size,
                                 wheelbase_mm=wb, method=method, refine=refine, **kw)

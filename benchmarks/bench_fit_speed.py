@@ -59,7 +59,7 @@ def main(argv=None) -> int:
 
     from scipy.optimize import lsq_linear, nnls
 
-    from carbody.fit.camera import View, project
+    from carbody.camera import View, project
     from carbody.fit.single_view import fit_wireframe, prepared
     from carbody.fit.solve import KeypointBasis, _centred, solve_gauss, solve_simplex
     from carbody.fit.visibility import visible_slots

@@ -290,7 +290,7 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     timings["view"] = time.perf_counter() - start
 
     start = stage("fit")
-    from carbody.fit.camera import check_azimuth
+    from carbody.camera import check_azimuth
 
     fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                         image_size=(w, h), wheelbase_mm=wheelbase_mm, name=name)

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from carbody.errors import AngleError
-from carbody.fit.camera import (View, camera_direction, check_azimuth, eq1_angles, eq1_rotation,
+from carbody.camera import (View, camera_direction, check_azimuth, eq1_angles, eq1_rotation,
                                 mirror_view, project, view_rotation)
 
 NOSE = np.array([0.0, -900.0, 300.0])   # ahead of the front wheel
@@ -42,16 +42,6 @@ def test_eq1_angles_reproduce_the_view(seed):
     rng = np.random.default_rng(seed)
     v = View(rng.uniform(0, 360), rng.uniform(-40, 60), rng.uniform(-20, 20))
     np.testing.assert_allclose(eq1_rotation(*eq1_angles(v)), view_rotation(v), atol=1e-10)
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_same_camera_as_the_renderer(seed):
-    from carbody.render.camera import camera_basis
-
-    rng = np.random.default_rng(seed)
-    az, el, roll = rng.uniform(0, 360), rng.uniform(-30, 60), rng.uniform(-20, 20)
-    d, r, w = camera_basis(az, el, roll)
-    np.testing.assert_allclose(view_rotation(View(az, el, roll)), np.array([d, r, w]), atol=1e-12)
 
 
 def test_mirror_view_flips_the_image_of_the_mirrored_car():

@@ -12,7 +12,7 @@ def photo(tmp_path_factory, library):
     """A drawn (photo-free) picture of the Volvo V60 at front 30°, elevation 5°, and its keypoints."""
     import cv2
 
-    from carbody.fit.camera import View, project
+    from carbody.camera import View, project
     from carbody.fit.visibility import visible_slots
     from carbody.templates.drawing import sample_curves
 

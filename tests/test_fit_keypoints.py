@@ -4,7 +4,7 @@ import json
 import pytest
 
 from carbody.errors import KeypointError
-from carbody.fit.camera import View
+from carbody.camera import View
 from carbody.fit.keypoints_io import check_keypoints, keypoint_slots, read_keypoints
 from carbody.fit.visibility import visible_keypoints
 

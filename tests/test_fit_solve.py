@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from carbody.fit.camera import View, project
+from carbody.camera import View, project
 from carbody.fit.keypoints_io import keypoint_slots
 from carbody.fit.solve import KeypointBasis, nnls_active_set, solve_simplex
 from carbody.fit.single_view import fit_wireframe

@@ -7,7 +7,8 @@ import pytest
 cq = pytest.importorskip("cadquery")
 
 from carbody.errors import RenderError  # noqa: E402
-from carbody.render import (Look, Scene, camera_basis, parse_view, project_orthographic,  # noqa: E402
+from carbody.camera import AngleError, View, parse_view, project, view_rotation  # noqa: E402
+from carbody.render import (Look, Scene,  # noqa: E402
                             render_shape, render_views, save_png, tessellate)
 
 
@@ -34,15 +35,15 @@ def marker_pixels(img):
 
 
 def test_camera_basis_follows_spec():
-    d, r, w = camera_basis(90, 0)
+    d, r, w = view_rotation(View(90, 0))
     assert np.allclose(d, [1, 0, 0]) and np.allclose(r, [0, 1, 0]) and np.allclose(w, [0, 0, 1])
-    d, r, w = camera_basis(0, 30)
+    d, r, w = view_rotation(View(0, 30))
     assert np.allclose(d, [0, -np.cos(np.radians(30)), 0.5])
     for t, p, q in [(37, 12, 0), (250, 28, 9)]:
-        d, r, w = camera_basis(t, p, q)
+        d, r, w = view_rotation(View(t, p, q))
         assert np.allclose(np.linalg.det(np.stack([r, w, d])), 1.0)   # right-handed: r x w = d
     # at the side view the nose (negative y) is on the left of the picture
-    uv = project_orthographic(np.array([[0, -1000, 0], [0, 0, 0]]), 90)
+    uv = project(np.array([[0, -1000, 0], [0, 0, 0]]), View(90))
     assert uv[0, 0] < uv[1, 0]
 
 
@@ -53,7 +54,7 @@ def test_parse_view(text, theta):
 
 
 def test_parse_view_refuses_nonsense():
-    with pytest.raises(RenderError, match="cannot read view"):
+    with pytest.raises(AngleError, match="cannot read view"):
         parse_view("upside down")
 
 
@@ -95,7 +96,7 @@ def test_orthographic_projection_is_the_spec_formula():
     scene.render(33, 17, look=look)
     pts = np.random.default_rng(0).uniform(-200, 200, (20, 3))
     uv = scene.project(pts)
-    ref = project_orthographic(pts, 33, 17)
+    ref = project(pts, View(33, 17))
     A = np.c_[ref[:, 0], np.ones(20)]
     s, u0 = np.linalg.lstsq(A, uv[:, 0], rcond=None)[0]
     assert np.allclose(A @ [s, u0], uv[:, 0], atol=1e-6)

@@ -51,7 +51,7 @@ def _truth(spec: str):
 
 def run_fit(args: argparse.Namespace) -> int:
     from carbody.errors import FitError
-    from carbody.fit.camera import View, check_azimuth
+    from carbody.camera import View, check_azimuth
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, read_image, write_image
     from carbody.fit.report import build_report, draw_error_chart, write_json
@@ -111,7 +111,7 @@ def _match_template(library, name: str) -> str:
 
 
 def run_visible(args: argparse.Namespace) -> int:
-    from carbody.fit.camera import View, check_azimuth
+    from carbody.camera import View, check_azimuth
     from carbody.fit.keypoints_io import keypoint_slots
     from carbody.fit.visibility import visible_keypoints
     from carbody.topology import load_topology

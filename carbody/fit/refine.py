@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-from carbody.fit.camera import View
+from carbody.camera import View
 
 #: How far (degrees) the refined azimuth may move from the given one.
 AZIMUTH_RANGE_DEG = 25.0

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carbody.errors import FitError
-from carbody.fit.camera import View, project
+from carbody.camera import View, project
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
 from carbody.fit.refine import refine_view
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, KeypointBasis, MixSolution,
@@ -134,7 +134,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         AngleError: a view outside 0–360°.
         FitError: an unknown method or a bad wheelbase, or keypoints no model can match.
     """
-    from carbody.fit.camera import check_azimuth
+    from carbody.camera import check_azimuth
 
     if not isinstance(view, View):
         view = View(check_azimuth(view))

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from carbody.errors import FitError
-from carbody.fit.camera import View, view_rotation
+from carbody.camera import View, view_rotation
 from carbody.fit.keypoints_io import KeypointSlot
 
 #: Default prior weight λ of the ``"gauss"`` method, dimensionless (keypoint residuals are

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from carbody.fit.camera import View, camera_direction, view_rotation
+from carbody.camera import View, camera_direction, view_rotation
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
 from carbody.topology import Topology, load_topology
 

@@ -8,17 +8,16 @@ Public API (VTK and OCP are imported only when a function runs)::
     scene = Scene(tessellate(body), size=(128, 128))   # tessellate once, render many views
     img = scene.render(135, 20, look=Look(paint=(0.8, 0.1, 0.1), background=texture))
 
-The camera follows SPEC "Frames and units" (:mod:`carbody.render.camera`): θ = 0 front,
+The camera follows SPEC "Frames and units" (:mod:`carbody.camera`): θ = 0 front,
 90 left side (x > 0), 180 rear, 270 right side; φ elevation; orthographic unless a perspective
 ``distance`` is given. Faces named after a glass region (windshield, rear_window, side_window)
 are glass, the rest paint.
 """
-from carbody.render.camera import camera_basis, parse_view, project_orthographic
 from carbody.render.mesh import GLASS_REGIONS, FaceMesh, is_glass, mirrored, named_faces, tessellate
 from carbody.render.scene import Look, Scene, as_rgb, render_shape, render_views, save_png
 
 __all__ = [
-    "GLASS_REGIONS", "FaceMesh", "Look", "Scene", "as_rgb", "camera_basis", "is_glass", "mirrored",
-    "named_faces", "parse_view", "project_orthographic", "render_shape", "render_views", "save_png",
+    "GLASS_REGIONS", "FaceMesh", "Look", "Scene", "as_rgb", "is_glass", "mirrored",
+    "named_faces", "render_shape", "render_views", "save_png",
     "tessellate",
 ]

@@ -13,7 +13,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from carbody.errors import RenderError
-from carbody.render.camera import camera_basis, parse_view
+from carbody.camera import View, parse_view, view_rotation
 from carbody.render.mesh import FaceMesh, is_glass, tessellate
 
 RGB = tuple[float, float, float]
@@ -214,7 +214,7 @@ class Scene:
             raise RenderError(f"elevation must be within ±89°, got {elevation_deg}")
         if not (0.05 <= fill <= 4.0):
             raise RenderError(f"fill must be 0.05..4, got {fill}")
-        d, r, w = camera_basis(view_deg, elevation_deg, roll_deg)
+        d, r, w = view_rotation(View(view_deg, elevation_deg, roll_deg))
         f = -d
         cam = self._renderer.GetActiveCamera()
         aspect = self.size[0] / self.size[1]
@@ -275,7 +275,7 @@ class Scene:
 
         Args:
             view_deg: θ in degrees or a name (``"front 30°"``, see
-                :func:`~carbody.render.camera.parse_view`).
+                :func:`~carbody.camera.parse_view`).
             elevation_deg: φ, degrees.
             roll_deg: ρ, degrees (positive turns the content counter-clockwise).
             look: materials, lights, background (default :class:`Look`).

@@ -1,4 +1,4 @@
-"""The camera contract every stage uses (SPEC "Frames and units"), and the paper's eq. 1.
+"""The camera contract every stage uses (fit, render, view) (SPEC "Frames and units"), and the paper's eq. 1.
 
 A view is an azimuth θ around z (0° front, 90° left side, 180° rear, 270° right side), an
 elevation φ above the horizon and a roll ψ of the image about the viewing axis. The unit vector
@@ -29,7 +29,7 @@ class View:
         azimuth: θ, 0° front, 90° left side, 180° rear, 270° right side.
         elevation: φ, camera height angle above the horizon (+ looking down at the car).
         roll: ψ about the viewing axis; + turns the picture's content counter-clockwise
-            (image-up becomes w·cos ψ + r·sin ψ, as :mod:`carbody.render.camera`).
+            (image-up becomes w·cos ψ + r·sin ψ).
     """
 
     azimuth: float
@@ -125,3 +125,33 @@ def depth(points: np.ndarray, view: View) -> np.ndarray:
 def mirror_view(view: View) -> View:
     """The view of the other side: θ ↔ 360° − θ (the image flips left–right, roll changes sign)."""
     return View((360.0 - view.azimuth) % 360.0, view.elevation, -view.roll)
+
+
+def parse_view(view: str | float) -> float:
+    """View angle θ in degrees from a number or a name such as ``"front 30°"``, ``"side"``,
+    ``"rear 30"``, ``"right side"``, ``"left 90"``.
+
+    Named views are on the left side (θ in [0, 180]) unless the name says ``right``:
+    ``front N`` is θ = N, ``rear N`` is θ = 180 − N, ``side`` is 90; ``right`` mirrors to
+    360 − θ.
+    """
+    if isinstance(view, (int, float, np.integer, np.floating)):
+        return float(view) % 360.0
+    text = str(view).strip().lower().replace("°", " ").replace("deg", " ")
+    words = text.split()
+    right = "right" in words
+    words = [x for x in words if x not in ("right", "left", "view")]
+    try:
+        if len(words) == 1 and words[0] not in ("front", "rear", "side", "back"):
+            return float(words[0]) % 360.0
+        base = {"front": 0.0, "side": 90.0, "rear": 180.0, "back": 180.0}[words[0]]
+        offset = float(words[1]) if len(words) > 1 else 0.0
+        if len(words) > 2:
+            raise ValueError
+    except (KeyError, ValueError, IndexError):
+        raise AngleError(f"cannot read view {view!r} (try 'front 30°', 'side', 'rear 30°' "
+                          f"or an angle in degrees)") from None
+    theta = base + offset if base < 180.0 else base - offset
+    if base == 90.0 and offset:
+        theta = 90.0 + offset
+    return (360.0 - theta) % 360.0 if right else theta % 360.0
