@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "carbody.fit.cli",
     "carbody.surface.cli",
     "carbody.reconstruct_cli",
+    "carbody.freecad_cli",
 )
 
 

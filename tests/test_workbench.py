@@ -119,3 +119,49 @@ print("RESULT " + json.dumps({{
     assert result["regions"] == sorted(r.name for r in topology.regions)
     assert result["valid"]
     assert result["faces"] == result["shell_faces"] == len(listing["faces"])
+
+
+def test_the_macro_reconstructs_headless_and_the_document_matches_the_step_files(tmp_path):
+    out, saved = tmp_path / "out", tmp_path / "car.FCStd"
+    env = {**os.environ, "CARBODY_COMMAND": f"{sys.executable} -m carbody",
+           "CARBODY_IMAGE": str(REPO / "examples" / "car.png"),
+           "CARBODY_KEYPOINTS": str(REPO / "examples" / "car_keypoints.json"),
+           "CARBODY_OUT": str(out), "CARBODY_VIEW": "30", "CARBODY_SAVE": str(saved)}
+    proc = subprocess.run(["freecadcmd", str(WORKBENCH / "carbody_reconstruct.FCMacro")], capture_output=True,
+                          text=True, timeout=600, env=env, cwd=tmp_path)
+    assert saved.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    from tests.conftest import run_cli
+
+    curves = json.loads(run_cli("parts", str(out / "wireframe.step"), "--json", check=True).stdout)["curves"]
+    faces = json.loads(run_cli("parts", str(out / "body.step"), "--json", check=True).stdout)["faces"]
+    result = run_freecad(f"""
+import json, FreeCAD
+doc = FreeCAD.openDocument({str(saved)!r})
+wire, body = doc.getObject("Wireframe"), doc.getObject("Body")
+regions = [o for o in body.Group if o.Label != "BodyShell"]
+print("RESULT " + json.dumps({{
+    "photo": doc.getObject("Photo") is not None,
+    "curve_labels": sorted(o.Label for o in wire.Group),
+    "edges": sum(len(o.Shape.Edges) for o in wire.Group),
+    "faces": sum(len(o.Shape.Faces) for o in regions),
+    "valid": all(o.Shape.isValid() for o in wire.Group + body.Group),
+}}))
+""", tmp_path)
+    assert result["photo"] and result["valid"]
+    assert result["curve_labels"] == sorted(c["name"] for c in curves)
+    assert result["edges"] == len(curves) == 125
+    assert result["faces"] == len(faces)
+
+
+def test_carbody_freecad_builds_a_document_or_says_freecad_is_missing(tmp_path):
+    from tests.conftest import run_cli
+
+    out = tmp_path / "out"
+    run_cli("reconstruct", str(REPO / "examples" / "car.png"), "-k", str(REPO / "examples" / "car_keypoints.json"),
+            "--view", "30", "-o", str(out), check=True)
+    proc = run_cli("freecad", str(out), "-o", str(tmp_path / "car.FCStd"))
+    assert proc.returncode == 0 and "125 curve objects" in proc.stdout and (tmp_path / "car.FCStd").is_file()
+    missing = run_cli("freecad", str(out), "-o", str(tmp_path / "none.FCStd"), "--freecadcmd", "/no/such/freecadcmd")
+    lines = missing.stderr.strip().splitlines()
+    assert missing.returncode == 2 and len(lines) == 1 and "FreeCAD is not installed" in lines[0]
+    assert not (tmp_path / "none.FCStd").exists()

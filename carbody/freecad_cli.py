@@ -1,0 +1,75 @@
+"""``carbody freecad OUT_DIR -o car.FCStd``: a reconstruction as a FreeCAD document.
+
+Runs FreeCAD's own ``freecadcmd`` (FreeCAD has its own OCCT build) with the workbench's headless
+core: the photo as an image plane, the wireframe as one Part object per curve, the body as one
+Part object per region plus the sewn shell.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from carbody.errors import CarbodyError
+
+WORKBENCH = Path(__file__).resolve().parents[1] / "workbench"
+
+_SCRIPT = """
+import json, os, sys
+sys.path.insert(0, {workbench!r})
+import FreeCAD
+from carbody_wb import core
+out, target = {out!r}, {target!r}
+doc = FreeCAD.newDocument("carbody")
+report = json.load(open(os.path.join(out, "report.json")))
+if report.get("image") and os.path.isfile(report["image"]):
+    core.add_photo(doc, report["image"])
+wire = core.import_step_parts(doc, os.path.join(out, "wireframe.step"), "Wireframe")
+body = core.import_step_parts(doc, os.path.join(out, "body.step"), "Body")
+doc.saveAs(target)
+print("CARBODY " + json.dumps({{"curves": len(wire.Group), "body_objects": len(body.Group)}}))
+"""
+
+
+class FreeCADError(CarbodyError):
+    """FreeCAD is missing or could not build the document."""
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("freecad", help="turn a reconstruction folder into a FreeCAD document (.FCStd)")
+    p.add_argument("folder", type=Path, help="a folder written by `carbody reconstruct`")
+    p.add_argument("-o", "--output", required=True, type=Path, help="the .FCStd file to write")
+    p.add_argument("--freecadcmd", default="freecadcmd", help="FreeCAD's command-line program (default: freecadcmd)")
+    p.set_defaults(func=run_freecad)
+
+
+def run_freecad(args: argparse.Namespace) -> int:
+    exe = args.freecadcmd if os.path.isabs(args.freecadcmd) else shutil.which(args.freecadcmd)
+    if not exe or not os.path.isfile(exe):
+        raise FreeCADError(f"FreeCAD is not installed: {args.freecadcmd!r} not found "
+                           "(Debian: apt-get install freecad-python3)")
+    for name in ("wireframe.step", "body.step", "report.json"):
+        if not (args.folder / name).is_file():
+            raise FreeCADError(f"{args.folder}: no {name} (not a `carbody reconstruct` folder)")
+    if not args.output.parent.is_dir():
+        raise FreeCADError(f"{args.output}: folder {args.output.parent} does not exist")
+    with tempfile.TemporaryDirectory(dir=args.output.parent, prefix=".carbody-fc-") as tmp:
+        target = Path(tmp) / "doc.FCStd"
+        script = Path(tmp) / "build.py"
+        script.write_text(_SCRIPT.format(workbench=str(WORKBENCH), out=str(args.folder.resolve()),
+                                         target=str(target)))
+        env = {**os.environ, "CARBODY_COMMAND": os.environ.get("CARBODY_COMMAND", f"{sys.executable} -m carbody")}
+        proc = subprocess.run([exe, str(script)], capture_output=True, text=True, env=env)
+        result = [line for line in proc.stdout.splitlines() if line.startswith("CARBODY ")]
+        if not result or not target.is_file():
+            lines = [line for line in (proc.stdout + proc.stderr).splitlines() if "carbody" in line.lower() or "Error" in line]
+            raise FreeCADError(f"FreeCAD could not build the document: {lines[-1] if lines else 'no result'}")
+        os.replace(target, args.output)
+    counts = json.loads(result[0][len("CARBODY "):])
+    print(f"wrote {args.output}: {counts['curves']} curve objects, {counts['body_objects']} body objects")
+    return 0
