@@ -15,15 +15,15 @@ from carbody.errors import CarbodyError
 
 #: Modules that register subcommands, in the order they appear in ``--help``.
 COMMAND_MODULES = (
-    "carbody.templates.cli",
-    "carbody.library_cli",
+    "carbody.reconstruct_cli",
     "carbody.demo",
-    "carbody.parts_cli",
+    "carbody.freecad_cli",
     "carbody.view.cli",
     "carbody.fit.cli",
     "carbody.surface.cli",
-    "carbody.reconstruct_cli",
-    "carbody.freecad_cli",
+    "carbody.templates.cli",
+    "carbody.library_cli",
+    "carbody.parts_cli",
 )
 
 
