@@ -45,7 +45,7 @@ def test_fit_writes_step_overlay_and_report(photo):
                    "-o", str(out / "car.step"), "--overlay", str(out / "ov.png"), "--report", str(out / "r.json"),
                    check=True)
     assert "fitted" in proc.stdout
-    from carbody.fit.overlay import read_image
+    from carbody.view.predict import read_image
     from carbody.occ.step_curves import read_curves_step
     from carbody.wireframe import read_wireframe
 
@@ -93,4 +93,4 @@ def test_bad_inputs_exit_2_with_one_line_and_no_output(photo, tmp_path):
     assert "0–360" in _bad(photo, tmp_path, view="400")
     junk = tmp_path / "junk.png"
     junk.write_bytes(b"not an image")
-    assert "not a readable image" in _bad(photo, tmp_path, image=junk)
+    assert "not an image" in _bad(photo, tmp_path, image=junk)

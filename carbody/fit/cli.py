@@ -53,15 +53,16 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.errors import FitError
     from carbody.camera import View, check_azimuth
     from carbody.fit.keypoints_io import read_keypoints
-    from carbody.fit.overlay import draw_overlay, read_image, write_image
+    from carbody.fit.overlay import draw_overlay, write_image
     from carbody.fit.report import build_report, draw_error_chart, write_json
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
+    from carbody.view.predict import read_image
     from carbody.wireframe import write_wireframe
 
     # Every input is checked before anything is written.
     view = View(check_azimuth(args.view), args.elevation)
-    image = read_image(args.image)
+    image = read_image(args.image)[..., ::-1].copy()  # RGB -> BGR: the overlay is drawn with OpenCV
     ann = read_keypoints(args.keypoints)
     h, w = image.shape[:2]
     library = load_library()

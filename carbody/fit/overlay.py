@@ -9,19 +9,6 @@ import numpy as np
 from carbody.errors import ImageError
 
 
-def read_image(path: str | Path) -> np.ndarray:
-    """(h, w, 3) uint8 BGR image; :class:`ImageError` when it cannot be read."""
-    import cv2
-
-    path = Path(path)
-    if not path.is_file():
-        raise ImageError(f"{path}: image not found")
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None or img.size == 0:
-        raise ImageError(f"{path}: not a readable image (PNG, JPEG, BMP, TIFF ...)")
-    return img
-
-
 def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
     """The overlay as a new (h, w, 3) uint8 BGR image.
 
