@@ -19,7 +19,6 @@ EX = REPO / "examples"
 
 def main(runs: int = 3) -> None:
     import carbody
-    from carbody.fit.report import keypoint_errors_mm
     from carbody.wireframe import read_wireframe
 
     print(f"machine: {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}")
@@ -37,19 +36,16 @@ def main(runs: int = 3) -> None:
             result.write(out)
         stages.append(result.timings_s)
     truth = read_wireframe(EX / "car_truth.step")
-    errors = keypoint_errors_mm(result.wireframe, truth)
-    scaled = result.wireframe.control_points * truth.measure()["wheelbase_mm"] / result.fit.wheelbase_mm
-    from carbody.wireframe import Wireframe
-
-    errors_true_wb = keypoint_errors_mm(Wireframe("scaled", scaled), truth)
+    fit = result.report(truth)["fit"]
     print("| measure | value |\n|---|---|")
     print(f"| `carbody reconstruct` (view by classifier), fresh process, median of {runs} | {statistics.median(walls):.2f} s |")
     for key in stages[0]:
         print(f"| stage `{key}`, warm process, median of {runs} | {statistics.median(s[key] for s in stages):.3f} s |")
     print(f"| view found | {result.fit.view.azimuth:.1f}° (true 30°), classifier {result.view_prediction.class_deg:.0f}° |")
-    print(f"| wheelbase fitted / true | {result.fit.wheelbase_mm:.0f} / {truth.measure()['wheelbase_mm']:.0f} mm |")
-    print(f"| 3D keypoint error, fitted wheelbase: mean / max | {statistics.mean(errors.values()):.1f} / {max(errors.values()):.1f} mm |")
-    print(f"| 3D keypoint error, true wheelbase: mean / max | {statistics.mean(errors_true_wb.values()):.1f} / {max(errors_true_wb.values()):.1f} mm |")
+    print(f"| wheelbase fitted / true | {fit['wheelbase_mm']:.0f} / {fit['truth_wheelbase_mm']:.0f} mm |")
+    print(f"| 3D keypoint error, fitted wheelbase: mean / max | {fit['error_mm_mean']:.1f} / {fit['error_mm_max']:.1f} mm |")
+    print(f"| 3D keypoint error, true wheelbase: mean / max | {fit['error_mm_at_truth_wheelbase_mean']:.1f} / "
+          f"{fit['error_mm_at_truth_wheelbase_max']:.1f} mm |")
 
 
 if __name__ == "__main__":

@@ -28,9 +28,6 @@ from carbody.errors import CarbodyError, KeypointError
 #: The stages, in order, as the progress display names them.
 STAGES = ("view", "fit", "surfaces")
 
-#: Files :meth:`Reconstruction.write` makes.
-OUTPUT_FILES = ("wireframe.step", "body.step", "car.step", "overlay.png", "body.png", "report.json", "summary.txt")
-
 
 class OutputError(CarbodyError):
     """The output folder cannot be created or written."""

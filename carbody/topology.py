@@ -86,12 +86,6 @@ class Topology:
                 return r
         raise TopologyError(f"unknown region {name!r}")
 
-    def keypoint(self, name: str) -> Keypoint:
-        for k in self.keypoints:
-            if k.name == name:
-                return k
-        raise TopologyError(f"unknown keypoint {name!r}")
-
     def junction_point_index(self, junction: str) -> int:
         """Index into the (280, 3) control-point array of one control point lying on ``junction``."""
         for c in self.curves:

@@ -65,8 +65,6 @@ class Wireframe:
 
     def measure(self, samples: int = 200) -> dict[str, float]:
         """Overall length, width (both halves), height above the wheel-centre line, wheelbase; mm."""
-        from carbody.templates.drawing import sample_curves
-
         topo = load_topology()
         pts = sample_curves(self.control_points, samples).reshape(-1, 3)
         front, rear = (wheel_centre(self.control_points, topo, side) for side in ("front", "rear"))
@@ -76,6 +74,21 @@ class Wireframe:
             "top_z_mm": float(pts[:, 2].max()),
             "wheelbase_mm": float(np.hypot(*(rear - front))),
         }
+
+
+def sample_curves(control_points: np.ndarray, samples: int = 24) -> np.ndarray:
+    """Points along every cubic Bezier curve.
+
+    Args:
+        control_points: (4k, 3) float, k curves in rows of four.
+        samples: points per curve.
+    Returns:
+        (k, samples, 3) float.
+    """
+    cp = control_points.reshape(-1, POINTS_PER_CURVE, 3)
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    basis = np.hstack([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3])  # (samples, 4)
+    return np.einsum("sk,ckd->csd", basis, cp)
 
 
 def wheel_centre(control_points: np.ndarray, topology: Topology, side: str) -> np.ndarray:

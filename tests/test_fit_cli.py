@@ -14,7 +14,7 @@ def photo(tmp_path_factory, library):
 
     from carbody.camera import View, project
     from carbody.fit.visibility import visible_slots
-    from carbody.templates.drawing import sample_curves
+    from carbody.wireframe import sample_curves
 
     folder = tmp_path_factory.mktemp("fit")
     t = library.template_names.index("Volvo V60")

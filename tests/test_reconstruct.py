@@ -157,8 +157,7 @@ def test_an_unreadable_photo_is_refused(tmp_path):
         carbody.reconstruct(junk, KEYPOINTS, view=30)
 
 
-def test_the_shipped_example_matches_its_generator():
-    """examples/car.png and its keypoints come from examples/make_example.py (the truth file too)."""
+def test_the_shipped_example_keypoints_name_their_photo_and_its_size():
     data = json.loads(KEYPOINTS.read_text())
     assert data["image"] == "car.png" and tuple(data["image_size"]) == (1000, 640)
     assert len(data["keypoints"]) >= 17

@@ -19,7 +19,7 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
     """
     import cv2
 
-    from carbody.templates.drawing import sample_curves
+    from carbody.wireframe import sample_curves
     from carbody.wireframe import MIRROR
 
     out = image.copy()

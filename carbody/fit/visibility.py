@@ -28,7 +28,7 @@ _SAMPLES = 8
 
 def _region_loops(control_points: np.ndarray, topo: Topology) -> list[np.ndarray]:
     """(n, 3) outline per region of the left half, in loop order."""
-    from carbody.templates.drawing import sample_curves
+    from carbody.wireframe import sample_curves
 
     curves = sample_curves(control_points, _SAMPLES)
     loops = []

@@ -303,11 +303,9 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
     on_a: dict[int, float] = {}  # A junction -> partner on B
     free_b: list[tuple[float, int]] = []
     used_b: set[int] = set()
-    at_end: list[tuple[int, int]] = []  # (side, junction) the correspondence pairs with an end
     for j in range(1, na):
         b = curve.partner_of_a(j)
         if not 0 < b < nb:
-            at_end.append((0, j))
             continue
         near = [k for k in range(1, nb) if abs(arc_b(k) - arc_b(b)) < min_gap_mm]
         if near:
@@ -320,7 +318,6 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
             continue
         a = curve.partner_of_b(k)
         if not 0 < a < na:
-            at_end.append((1, k))
             continue
         near = [j for j in range(1, na) if abs(arc_a(j) - arc_a(a)) < min_gap_mm]
         if near:
@@ -330,7 +327,6 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
     junctions = [(float(j), b) for j, b in on_a.items()] + free_b
     junc = np.unique(np.array(junctions).reshape(-1, 2), axis=0)
     junc = junc[np.lexsort((junc[:, 1], junc[:, 0]))]
-    junc = _ribs_for_end_paired(junc, at_end, na, nb)
     if samples is not None and len(junc):
         junc = _keep_inside(outline, samples, junc)
     if len(junc) and (np.any(np.diff(junc[:, 0]) <= 0) or np.any(np.diff(junc[:, 1]) <= 0)):
@@ -364,29 +360,6 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
     ribs = np.vstack([[0.0, 0.0], inner[order], [na, nb]])
     kinds = ["end"] + [kinds[i] for i in order] + ["end"]
     return _refine_turns(outline, samples, ribs, kinds, curve)
-
-
-def _ribs_for_end_paired(junc: np.ndarray, at_end: list[tuple[int, int]], na: int, nb: int) -> np.ndarray:
-    """Give a rib to every junction the correspondence paired with an end of the other side.
-
-    Every junction needs a rib (a face edge must lie on one cubic); such a junction's partner is
-    put midway between its neighbouring ribs' partners, which keeps the ribs strictly ordered.
-    """
-    ends = (na, nb)
-    for side, j in at_end:
-        other = 1 - side
-        if np.any(np.isclose(junc[:, side], j)):
-            continue
-        before, after = junc[junc[:, side] < j], junc[junc[:, side] > j]
-        lo = before[-1, other] if len(before) else 0.0
-        hi = after[0, other] if len(after) else float(ends[other])
-        if not lo < hi:
-            continue
-        rib = np.empty(2)
-        rib[side], rib[other] = j, (lo + hi) / 2
-        junc = np.vstack([junc, rib]).reshape(-1, 2)
-        junc = junc[np.argsort(junc[:, side], kind="stable")]
-    return junc
 
 
 def _turn(chain: Chain, s0: float, s1: float) -> float:

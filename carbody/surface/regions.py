@@ -97,12 +97,6 @@ class Chain:
             out[m] = bezier_points(self.poles[k], t[m])
         return out
 
-    def curve_param(self, s: float) -> tuple[int, float]:
-        """(piece index, parameter in the wireframe curve's own direction) of chain parameter s."""
-        i = min(int(s), self.n - 1)
-        t = s - i
-        return i, (1.0 - t if self.reversed[i] else t)
-
     def arc_table(self) -> tuple[np.ndarray, np.ndarray]:
         """(s, cumulative arc length mm) on a dense grid of the chain; both (n*DENSE + 1,)."""
         s = np.linspace(0, self.n, self.n * DENSE + 1)

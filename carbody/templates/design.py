@@ -15,7 +15,7 @@ exactly (see :func:`_solve_bulge` and the clamps in :func:`build_wireframe`).
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -156,9 +156,6 @@ class DesignTable:
             return float(self.details[key])
         profile = CLASS_PROFILES[self.car_class]
         return float(profile[key] if key in profile else COMMON_DEFAULTS[key])
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict) -> "DesignTable":

@@ -5,7 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from carbody.topology import POINTS_PER_CURVE, Topology, load_topology
+from carbody.topology import Topology, load_topology
+from carbody.wireframe import sample_curves
 
 #: (title, horizontal axis, vertical axis, draw both halves) per view; an axis is (coordinate, sign).
 VIEWS = (
@@ -14,21 +15,6 @@ VIEWS = (
     ("top", (1, 1.0), (0, -1.0), True),
     ("rear", (0, -1.0), (2, 1.0), True),
 )
-
-
-def sample_curves(control_points: np.ndarray, samples: int = 24) -> np.ndarray:
-    """Points along every cubic Bezier curve.
-
-    Args:
-        control_points: (4k, 3) float, k curves in rows of four.
-        samples: points per curve.
-    Returns:
-        (k, samples, 3) float.
-    """
-    cp = control_points.reshape(-1, POINTS_PER_CURVE, 3)
-    t = np.linspace(0.0, 1.0, samples)[:, None]
-    basis = np.hstack([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3])  # (samples, 4)
-    return np.einsum("sk,ckd->csd", basis, cp)
 
 
 def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "",

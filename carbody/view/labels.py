@@ -19,10 +19,6 @@ N_CLASSES = 24
 #: (24,) class angles θ_k in degrees.
 CLASS_ANGLES_DEG = np.arange(N_CLASSES) * CLASS_STEP_DEG
 
-#: The paper's 13 left-side classes (0°..180°), as class indices.
-LEFT_SIDE_CLASSES = tuple(range(13))
-
-
 def class_of(theta_deg: float) -> int:
     """Index of the class nearest to θ (degrees, any real)."""
     return int(np.round((theta_deg % 360.0) / CLASS_STEP_DEG)) % N_CLASSES

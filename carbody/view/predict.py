@@ -133,7 +133,7 @@ def load_classifier(weights: str | None = None):
 
 
 @functools.lru_cache(maxsize=4)
-def _load_classifier(path_text: str, mtime_ns: int):
+def _load_classifier(path_text: str, mtime_ns: int):  # mtime_ns: cache key only
     import torch
 
     from carbody.view.network import build_mobilenet_v2
