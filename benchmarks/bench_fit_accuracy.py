@@ -7,7 +7,9 @@ fit, and measure the 3D error of the 35 keypoints in mm at the true wheelbase.
 
 Cases: the view known (no refinement), and the given angle off by +10° without and with the
 view refinement. Methods: ``paper`` (plain ΣH = 1, 0 ≤ H ≤ 1) and ``gauss`` (Gaussian shape
-prior, the default). ``--sweep`` also scans the prior weight λ on the known-view case.
+prior, the default), each Gaussian-prior case with the photo-matching deformation (default) and,
+where marked "no deform", without it. ``--sweep`` also scans the prior weight λ on the
+known-view case.
 
 Run: python benchmarks/bench_fit_accuracy.py [--quick] [--sweep] [--json out.json]
 """
@@ -65,17 +67,19 @@ def run_template(args) -> list[dict]:
         kps, size = synthetic_view(truth, azimuth, rng, elevation)
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
-        for method, lam, offset, refine in cases + [("gauss", l, 0.0, False) for l in lambdas]:
+        for method, lam, offset, refine, deform in cases + [("gauss", l, 0.0, False, True) for l in lambdas]:
             t0 = time.perf_counter()
             kw = {"prior_weight": lam} if lam is not None else {}
             from carbody.camera import View
 
             res = fit_wireframe(kps, View(azimuth + offset, elevation), loo, image_size=size,
-                                wheelbase_mm=wb, method=method, refine=refine, **kw)
+                                wheelbase_mm=wb, method=method, refine=refine,
+                                deform=deform and method != "paper", **kw)
             dt = time.perf_counter() - t0
             err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
             rows.append({"template": name, "azimuth": azimuth, "method": method, "lambda": lam,
-                         "offset": offset, "refine": refine, "k": len(kps),
+                         "offset": offset, "refine": refine, "deform": deform and method != "paper",
+                         "k": len(kps),
                          "mean_mm": float(err.mean()), "max_mm": float(err.max()),
                          "annotated_mean_mm": float(err[ann_idx].mean()),
                          "annotated_max_mm": float(err[ann_idx].max()),
@@ -86,6 +90,8 @@ def run_template(args) -> list[dict]:
 
 def case_label(r: dict) -> str:
     lab = r["method"] + ("" if r["lambda"] is None else f" λ={r['lambda']:g}")
+    if r["method"] != "paper" and not r.get("deform", True):
+        lab += " no deform"
     if r["offset"]:
         lab += f", given +{r['offset']:g}°" + (", refined" if r["refine"] else ", not refined")
     else:
@@ -145,10 +151,12 @@ def main(argv=None) -> int:
     n_templates = len(load_library().template_names)
     templates = [0, 5, 9] if args.quick else list(range(n_templates))
     angles = (0, 30, 90, 150, 180) if args.quick else ANGLES
-    cases = [("paper", None, 0.0, False), ("gauss", None, 0.0, False), ("mixture", None, 0.0, False),
-             ("mixture", None, OFFSET_DEG, True),
-             ("paper", None, OFFSET_DEG, False), ("paper", None, OFFSET_DEG, True),
-             ("gauss", None, OFFSET_DEG, False), ("gauss", None, OFFSET_DEG, True)]
+    cases = [("paper", None, 0.0, False, False), ("gauss", None, 0.0, False, True),
+             ("gauss", None, 0.0, False, False), ("mixture", None, 0.0, False, True),
+             ("mixture", None, OFFSET_DEG, True, True),
+             ("paper", None, OFFSET_DEG, False, False), ("paper", None, OFFSET_DEG, True, False),
+             ("gauss", None, OFFSET_DEG, False, True), ("gauss", None, OFFSET_DEG, True, True),
+             ("gauss", None, OFFSET_DEG, True, False)]
     if args.known_only:
         cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []

@@ -107,7 +107,7 @@ def test_right_side_view_with_mirror_names(library, topology):
     truth = library.points(j)
     slots, uv = _observe(truth, View(300, 5), noise=0.5)
     assert sum(s.is_mirror for s in slots) >= 15  # mostly right-half names
-    res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, 300, library, wheelbase_mm=1000.0,
+    res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, View(300, 5), library, wheelbase_mm=1000.0,
                         refine=False)
     kp = topology.keypoint_point_indices
     assert np.linalg.norm(res.wireframe.control_points[kp] - truth[kp], axis=1).mean() < 15
@@ -139,3 +139,49 @@ def test_mixture_prior_fits_a_left_out_car(library, topology):
     kp = topology.keypoint_point_indices
     err = np.linalg.norm(res.wireframe.control_points[kp] - truth[kp], axis=1) * library.template_wheelbase_mm[t] / 1000
     assert err.max() < 60 and res.solution.residual_px.mean() < 3
+
+
+def _wheelbase(points, topology):
+    from carbody.wireframe import wheel_centre
+
+    return np.linalg.norm(wheel_centre(points, topology, "rear") - wheel_centre(points, topology, "front"))
+
+
+def test_deformation_moves_an_unlike_car_onto_its_marks(library, topology):
+    """A car no template resembles (the pickup, left out): the mix misses its marks by ~5 px;
+    the deformation moves it closer to them (a stiff field: part of the miss stays), keeps the
+    wheel centres, the symmetry plane and the curve joins, and the marked keypoints get closer
+    in 3D."""
+    template = "Ford F-150 SuperCrew 5.5 ft"
+    t = library.template_names.index(template)
+    loo = library.without(template)
+    truth = library.points(_original(library, t))
+    slots, uv = _observe(truth, View(30), scale=0.5, noise=1.0)
+    kps = {s.name: p for s, p in zip(slots, uv)}
+    mix = fit_wireframe(kps, 30, loo, wheelbase_mm=1000.0, refine=False, deform=False)
+    moved = fit_wireframe(kps, 30, loo, wheelbase_mm=1000.0, refine=False)
+    assert mix.deformation_mm == 0 and moved.deformation_mm > 10
+    assert np.mean(list(moved.residuals_px().values())) < 0.8 * np.mean(list(mix.residuals_px().values()))
+    np.testing.assert_allclose(moved.solution.residual_px, list(moved.residuals_px().values()))
+    kp = topology.keypoint_point_indices
+    marked = sorted({s.point_index for s in slots})
+    err_mix, err_moved = (np.linalg.norm(r.wireframe.control_points[marked] - truth[marked], axis=1).mean()
+                          for r in (mix, moved))
+    assert err_moved < err_mix
+    pts = moved.wireframe.control_points
+    assert _wheelbase(pts, topology) == pytest.approx(1000.0, abs=1e-6)
+    on_plane = [i for j in topology.symmetry_junctions for i in topology.junction_groups()[j]]
+    assert len(on_plane) > 10 and np.abs(pts[on_plane, 0]).max() < 1e-6
+    # Curves that met still meet: every junction's control points stay together.
+    for rows in topology.junction_groups().values():
+        assert np.ptp(pts[rows], axis=0).max() < 1e-6
+    assert not np.allclose(pts[kp], mix.wireframe.control_points[kp])
+
+
+def test_deformation_leaves_a_library_car_alone(library, topology):
+    """Marks the mix already meets (a library model, no noise) move nothing."""
+    truth = library.points(_original(library, 4))
+    slots, uv = _observe(truth, View(45))
+    res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, 45, library, wheelbase_mm=1000.0,
+                        refine=False, method="paper", deform=True)
+    assert res.deformation_mm < 0.5

@@ -25,6 +25,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="gauss: Gaussian shape prior (default); paper: the paper's plain ΣH=1, "
                         "0≤H≤1; mixture: one Gaussian per template (slower)")
     p.add_argument("--no-refine", action="store_true", help="keep the given view as it is")
+    p.add_argument("--no-deform", action="store_true",
+                   help="keep the library mix as it is (no smooth move onto the marked keypoints)")
     p.add_argument("--output", "-o", required=True, help="wireframe STEP file to write")
     p.add_argument("--overlay", help="PNG: photo + annotated (red) / reprojected (green) keypoints + wireframe")
     p.add_argument("--report", help="JSON report: view, 3D keypoints, residuals, weights, errors")
@@ -74,6 +76,7 @@ def run_fit(args: argparse.Namespace) -> int:
             raise FitError(f"{out}: its folder does not exist")
     result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                            method=args.method, refine=not args.no_refine,
+                           deform=False if args.no_deform else None,
                            name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
     report = build_report(result, truth) if (args.report or truth is not None) else None

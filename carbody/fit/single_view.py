@@ -12,6 +12,7 @@ import numpy as np
 
 from carbody.errors import FitError
 from carbody.camera import View, project
+from carbody.fit.deform import DeformationField
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
 from carbody.fit.refine import refine_view
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, KeypointBasis, MixSolution,
@@ -39,6 +40,15 @@ def prepared(library: Library, method: str):
     return _PREPARED[key][1]
 
 
+def prepared_field(library: Library) -> DeformationField:
+    """The photo-matching deformation field around the library's mean model, built once."""
+    key = (id(library.S), library.S.shape, "field")
+    if key not in _PREPARED:
+        mean = library.S.mean(axis=1, dtype=np.float64)
+        _PREPARED[key] = (library.S, DeformationField.around(mean, load_topology()))
+    return _PREPARED[key][1]
+
+
 @dataclass
 class FitResult:
     """A fitted car.
@@ -51,6 +61,8 @@ class FitResult:
         wheelbase_mm: the wheelbase the model was scaled to.
         method: ``"gauss"``, ``"paper"`` or ``"mixture"``.
         library: the library used (names for the report).
+        deformation_mm: largest control-point move of the photo-matching deformation, mm
+            (0 when it is off); the weights describe the mix before it.
     """
 
     wireframe: Wireframe
@@ -62,6 +74,7 @@ class FitResult:
     wheelbase_mm: float
     method: str
     library: Library = field(repr=False)
+    deformation_mm: float = 0.0
 
     @property
     def mm_per_unit(self) -> float:
@@ -115,7 +128,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                   library: Library | None = None, *, image_size: tuple[int, int] | None = None,
                   wheelbase_mm: float | None = None, method: str = METHODS[0],
                   prior_weight: float = DEFAULT_PRIOR_WEIGHT, refine: bool = True,
-                  name: str = "fitted car") -> FitResult:
+                  deform: bool | None = None, name: str = "fitted car") -> FitResult:
     """Fit the car's 3D wireframe to keypoints marked on one photo.
 
     Args:
@@ -128,6 +141,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             0 ≤ H ≤ 1) or ``"mixture"`` (one Gaussian per template); see :mod:`carbody.fit.solve`.
         prior_weight: λ of ``"gauss"`` and ``"mixture"``.
         refine: refine azimuth, elevation and roll around ``view``.
+        deform: move the mix onto the annotated keypoints with a smooth symmetric field
+            (:mod:`carbody.fit.deform`); default on for ``"gauss"``/``"mixture"``, off for
+            ``"paper"`` (the paper's method as published).
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -171,6 +187,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     refined = View(float(refined.azimuth) % 360.0, float(refined.elevation), float(refined.roll))
     if sol.shape is None:
         sol.shape = library.S[:, sol.support] @ sol.H[sol.support]
+    moved = 0.0
+    if deform if deform is not None else method != "paper":
+        before = sol.shape
+        sol.shape = prepared_field(library).fit_to_keypoints(before, idx, slots, uv, refined,
+                                                              sol.scale, sol.offset)
+        keypoints = np.array([sol.shape.reshape(-1, 3)[s.point_index] * s.sign for s in slots])
+        sol.residual_px = np.linalg.norm(project(keypoints, refined, sol.scale, sol.offset) - uv, axis=1)
+        moved = float(np.max(np.linalg.norm((sol.shape - before).reshape(-1, 3), axis=1)))
     if wheelbase_mm is None:
         if sol.H is None:
             raise FitError("no wheelbase given and the mix's weights are unknown")
@@ -178,4 +202,4 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     points = sol.shape.reshape(-1, 3) * (wheelbase_mm / NORMALISED_WHEELBASE)
     return FitResult(wireframe=Wireframe(name, points), view=refined, given_view=view, solution=sol,
                      slots=slots, uv=uv, wheelbase_mm=float(wheelbase_mm), method=method,
-                     library=library)
+                     library=library, deformation_mm=moved * wheelbase_mm / NORMALISED_WHEELBASE)
