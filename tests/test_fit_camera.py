@@ -59,3 +59,24 @@ def test_view_outside_0_360_is_refused(bad):
     with pytest.raises(AngleError):
         check_azimuth(bad)
     assert check_azimuth(360) == 360.0
+
+
+@pytest.mark.parametrize("theta,other", [(30, 32), (150, 147), (60, 70)])
+def test_level_view_cannot_tell_azimuth_from_width_and_height(theta, other):
+    """Why a level photo does not fix the azimuth: the car seen at θ and the car made
+    tan θ'/tan θ as wide and sin θ'/sin θ as tall (wheelbase unchanged) seen at θ' give the same
+    image, pixel for pixel. A camera 10° above the car tells them apart."""
+    car = np.random.default_rng(theta).uniform([-900, -1000, -300], [900, 2000, 1200], (50, 3))
+    t, o = np.radians(theta), np.radians(other)
+    twin = car * [np.tan(o) / np.tan(t), 1.0, np.sin(o) / np.sin(t)]
+    scale, offset = 0.3, (500.0, 300.0)
+    seen = project(car, View(theta), scale, offset)
+    np.testing.assert_allclose(project(twin, View(other), scale * np.sin(t) / np.sin(o), offset), seen,
+                               atol=1e-9)
+    # From 10° above, no image scale and offset maps the twin onto the car.
+    target = project(car, View(theta, 10.0), scale, offset)
+    unit = project(twin, View(other, 10.0))
+    A = np.zeros((2 * len(car), 3))
+    A[0::2, 0], A[1::2, 0], A[0::2, 1], A[1::2, 2] = unit[:, 0], unit[:, 1], 1.0, 1.0
+    fit, *_ = np.linalg.lstsq(A, target.ravel(), rcond=None)
+    assert np.sqrt(np.mean((A @ fit - target.ravel()) ** 2)) > 1.0

@@ -94,3 +94,10 @@ def test_bad_inputs_exit_2_with_one_line_and_no_output(photo, tmp_path):
     junk = tmp_path / "junk.png"
     junk.write_bytes(b"not an image")
     assert "not an image" in _bad(photo, tmp_path, image=junk)
+
+
+def test_cli_method_choices_are_the_solver_methods():
+    from carbody.fit.cli import METHOD_CHOICES
+    from carbody.fit.solve import METHODS
+
+    assert METHOD_CHOICES == METHODS

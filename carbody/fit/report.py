@@ -3,7 +3,7 @@ top weights and, against a ground truth, the 3D error per keypoint with a bar ch
 
 With a truth, ``error_mm`` compares the output as written (its wheelbase included) and
 ``error_mm_at_truth_wheelbase`` the shape alone at the truth's wheelbase (the benchmark's
-measure). With the ``"gauss"`` method the weights are affine (ΣH = 1, some negative).
+measure). With the Gaussian-prior methods the weights are affine (ΣH = 1, some negative).
 """
 from __future__ import annotations
 

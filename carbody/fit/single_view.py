@@ -59,7 +59,7 @@ class FitResult:
         solution: the mix at the refined view (normalised units).
         slots: the annotated keypoints; ``uv`` their pixels (k, 2).
         wheelbase_mm: the wheelbase the model was scaled to.
-        method: ``"gauss"``, ``"paper"`` or ``"mixture"``.
+        method: ``"mixture"``, ``"gauss"`` or ``"paper"``.
         library: the library used (names for the report).
         deformation_mm: largest control-point move of the photo-matching deformation, mm
             (0 when it is off); the weights describe the mix before it.
@@ -137,10 +137,12 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         library: the model library (default :func:`carbody.library.load_library`).
         image_size: (width, height) px; keypoints off the image are refused.
         wheelbase_mm: real wheelbase; default the fitted mix of the templates' own.
-        method: ``"gauss"`` (Gaussian shape prior, default), ``"paper"`` (plain ΣH = 1,
-            0 ≤ H ≤ 1) or ``"mixture"`` (one Gaussian per template); see :mod:`carbody.fit.solve`.
+        method: ``"mixture"`` (a Gaussian shape prior around each template, default),
+            ``"gauss"`` (one around the library mean) or ``"paper"`` (plain ΣH = 1,
+            0 ≤ H ≤ 1); see :mod:`carbody.fit.solve`.
         prior_weight: λ of ``"gauss"`` and ``"mixture"``.
-        refine: refine azimuth, elevation and roll around ``view``.
+        refine: refine azimuth and elevation around ``view`` (roll stays as given; see
+            :mod:`carbody.fit.refine`).
         deform: move the mix onto the annotated keypoints with a smooth symmetric field
             (:mod:`carbody.fit.deform`); default on for ``"gauss"``/``"mixture"``, off for
             ``"paper"`` (the paper's method as published).

@@ -1,7 +1,7 @@
 """The weight solve (paper III.D, eqs. 2–4): image keypoints → library mix H → new model S·H.
 
 The image keypoints z (pixels) are the projection of the mixed model, s·K·H + t, with the image's
-unknown scale s and offset t. Two methods:
+unknown scale s and offset t. Three methods:
 
 - ``"paper"``: the paper's constrained least squares, ΣH = 1, 0 ≤ H ≤ 1. Writing G = s·H turns
   the constraints into G ≥ 0 (then s = ΣG, H = G/ΣG, and H ≤ 1 follows), and centring both sides
@@ -9,18 +9,20 @@ unknown scale s and offset t. Two methods:
   non-negative least squares by an active set on a working set of models. The full library's
   gradient is one pass over its (35·3, N) keypoint rows, so a million models cost a few
   matrix–vector passes, never an N × N matrix or the full 840-row S.
-- ``"gauss"`` (default): a Gaussian shape prior. The library's models span a shape space with a
+- ``"gauss"``: a Gaussian shape prior. The library's models span a shape space with a
   mean m and principal directions B (scaled to unit variance); the new model is m + B·a, an
   affine mix of the library (ΣH = 1, weights may be negative), with a MAP estimate
   min ‖reprojection‖² + λ‖a‖². With c = s·a and g = s the problem is linear in (g, c), so one
   small (1 + q)² solve replaces the NNLS. Directions the view cannot see (x on a side view, y on
   a front view) go to their most likely value given the visible ones instead of to whichever
   library corner happens to fit, and a car outside the library's convex hull (a leave-one-out
-  template) can still be reached. It wins on the leave-one-out benchmark (BENCHMARKS.md).
-- ``"mixture"``: the same covariance around each template's mean instead of the library mean,
-  the components weighted by their posterior. It lets the visible part of the car pick which
-  template the invisible part resembles (front and rear views gain most), at ~13 solves per
-  solve.
+  template) can still be reached. It halves the paper's error on the leave-one-out benchmark.
+- ``"mixture"`` (default): the same covariance around each template's mean instead of the
+  library mean, the components weighted by their posterior. It lets the visible part of the car
+  pick which template the invisible part resembles (front and rear views gain most). All
+  centres share one SVD and their scale searches run side by side, so it costs about one
+  ``"gauss"`` solve; it is the best of the three on every case of the leave-one-out benchmark
+  (BENCHMARKS.md).
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ from carbody.errors import FitError
 from carbody.camera import View, view_rotation
 from carbody.fit.keypoints_io import KeypointSlot
 
-#: Default prior weight λ of the ``"gauss"`` method, dimensionless (keypoint residuals are
+#: Default prior weight λ of the Gaussian-prior methods, dimensionless (keypoint residuals are
 #: measured relative to the car's spread in the image); chosen on the leave-one-out benchmark
 #: (``benchmarks/bench_fit_accuracy.py --sweep``).
 DEFAULT_PRIOR_WEIGHT = 1e-4
@@ -44,7 +46,7 @@ SHAPE_ENERGY = 0.99999
 MAX_COMPONENTS = 200
 
 #: Fit methods, default first.
-METHODS = ("gauss", "paper", "mixture")
+METHODS = ("mixture", "gauss", "paper")
 
 #: Libraries up to this size are solved in one active-set run over every model.
 FULL_SET_MAX = 6000
@@ -340,17 +342,17 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     am = (Mc @ mk) / model.size
     if mixture and model.group_means is not None:
         # One Gaussian per template centre, shared covariance; the posterior mean of the mixture.
-        fits = [_map_coefficients(am + AB @ c, AB, b, prior_weight) for c in model.group_means]
-        nle = np.array([f[3] for f in fits])
+        deltas, gs, _, nle = _map_coefficients(am + model.group_means @ AB.T, AB, b, prior_weight)
         w = np.exp(-(nle - nle.min()))
         evidence = float(nle.min() - np.log(w.mean()))
         w /= w.sum()
-        delta = sum(wi * f[0] for wi, f in zip(w, fits))
+        delta = w @ deltas
         a = w @ model.group_means + delta
-        g = float(sum(wi * f[1] for wi, f in zip(w, fits)))
+        g = float(w @ gs)
         prior_part = np.sqrt(prior_weight) * delta
     else:
-        a, g, _, evidence = _map_coefficients(am, AB, b, prior_weight)
+        a, g, _, evidence = (v[0] for v in _map_coefficients(am, AB, b, prior_weight))
+        g, evidence = float(g), float(evidence)
         prior_part = np.sqrt(prior_weight) * a
     if not g > 0:
         raise FitError("no shape reproduces these keypoints at a positive image scale "
@@ -367,45 +369,62 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
                        residual_vector=rvec, evidence=evidence)
 
 
-def _map_coefficients(am: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float) -> tuple[np.ndarray, float, float, float]:
-    """argmin over a, g > 0 of ‖g·(am + AB·a) − b‖² + λ‖a‖² (the MAP shape and scale).
+def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """argmin over a, g > 0 of ‖g·(am + AB·a) − b‖² + λ‖a‖² (the MAP shape and scale), for one or
+    several prior centres at once.
 
     For a fixed scale g the shape coefficients are a ridge solve, done for every g at once in
-    the right singular basis of AB; the scale is then a 1-D minimisation (grid, then bounded Brent).
+    the right singular basis of AB (shared by all centres); the scale is then a 1-D minimisation
+    (a log grid, then golden-section search), vectorised over the centres.
     Args:
-        am: (m,) the mean shape's centred projection; AB: (m, q) the basis'; b: (m,) the image.
+        ams: (T, m) the centres' centred projections (the mean shape's, or one per template);
+            AB: (m, q) the basis'; b: (m,) the image.
     Returns:
-        (a (q,), g, the minimised cost, −log evidence). With noise variance λ (the prior on a is
-        N(0, I)), −log p(b) = cost/(2λ) + ½·log det(I + g²·ABᵀAB/λ) + const: the log-det term
-        charges a view for every shape direction it lets the data move, so comparing views by
-        it does not favour views where the shape can absorb a wrong camera.
+        (a (T, q), g (T,), the minimised costs (T,), −log evidence (T,)). With noise variance λ
+        (the prior on a is N(0, I)), −log p(b) = cost/(2λ) + ½·log det(I + g²·ABᵀAB/λ) + const:
+        the log-det term charges a view for every shape direction it lets the data move, so
+        comparing views by it does not favour views where the shape can absorb a wrong camera.
     """
-    from scipy.optimize import minimize_scalar
-
+    ams = np.atleast_2d(ams)
     # Thin SVD: directions of a the image cannot see (AB·v = 0) stay at the prior mean, 0.
     _, sv, Vt = np.linalg.svd(AB, full_matrices=False)
     V, e = Vt.T, sv**2
     ABV = AB @ V
-    y1, y2 = ABV.T @ b, ABV.T @ am
+    y1, y2 = ABV.T @ b, ams @ ABV  # (q,), (T, q)
 
-    def coeffs(g):
-        return g * (y1 - g * y2) / (g * g * e + lam)
+    def coeffs(g):  # g: (T, n) -> (T, n, q)
+        g = g[..., None]
+        return g * (y1 - g * y2[:, None]) / (g * g * e + lam)
 
-    def cost(g):
-        av = coeffs(g)
-        r = g * am - b + g * (ABV @ av)
-        return float(r @ r + lam * av @ av)
+    # ABV's columns are orthogonal with squared norms e, so the cost needs only q-vectors:
+    # ‖g·(am + ABV·c) − b‖² = g²(am·am + 2 y2·c + Σ e c²) − 2g(am·b + y1·c) + b·b.
+    amam, amb, bb = np.einsum("tm,tm->t", ams, ams)[:, None], (ams @ b)[:, None], float(b @ b)
 
-    # The unregularised scale of the mean shape brackets the answer.
-    g0 = max(float(am @ b) / max(float(am @ am), 1e-300), 1e-6)
-    grid = g0 * np.geomspace(0.1, 10.0, 41)
-    costs = [cost(g) for g in grid]
-    i = int(np.argmin(costs))
-    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-    g = float(minimize_scalar(cost, bounds=(lo, hi), method="bounded",
-                              options={"xatol": 1e-10 * grid[i]}).x)
-    c = cost(g)
-    return V @ coeffs(g), g, c, c / (2 * lam) + 0.5 * float(np.sum(np.log1p(g * g * e / lam)))
+    def cost(g):  # (T, n)
+        c = coeffs(g)
+        quad = amam + 2.0 * np.einsum("tnq,tq->tn", c, y2) + np.einsum("tnq,q->tn", c * c, e)
+        return g * g * quad - 2.0 * g * (amb + c @ y1) + bb + lam * np.einsum("tnq,tnq->tn", c, c)
+
+    # The unregularised scale of each centre brackets the answer.
+    g0 = np.maximum(amb[:, 0] / np.maximum(amam[:, 0], 1e-300), 1e-6)
+    grid = g0[:, None] * np.geomspace(0.1, 10.0, 41)
+    i = np.argmin(cost(grid), axis=1)
+    rows = np.arange(len(ams))
+    lo, hi = grid[rows, np.maximum(i - 1, 0)], grid[rows, np.minimum(i + 1, grid.shape[1] - 1)]
+    ratio = (np.sqrt(5.0) - 1.0) / 2.0
+    for _ in range(40):  # golden section: 0.618^40 ≈ 4e-9 of the bracket
+        x1, x2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+        left = cost(np.stack([x1, x2], axis=1))
+        better1 = left[:, 0] < left[:, 1]
+        hi = np.where(better1, x2, hi)
+        lo = np.where(better1, lo, x1)
+    g = (lo + hi) / 2.0
+    cv = coeffs(g[:, None])[:, 0]
+    r = g[:, None] * (ams + cv @ ABV.T) - b
+    c = np.einsum("tm,tm->t", r, r) + lam * np.einsum("tq,tq->t", cv, cv)
+    a = cv @ V.T
+    nle = c / (2 * lam) + 0.5 * np.sum(np.log1p(g[:, None] ** 2 * e / lam), axis=1)
+    return a, g, c, nle
 
 
 def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, b: np.ndarray,
