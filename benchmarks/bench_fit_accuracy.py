@@ -109,8 +109,8 @@ def case_label(r: dict) -> str:
 def summarise(rows: list[dict]) -> str:
     out = []
     labels = list(dict.fromkeys(case_label(r) for r in rows))
-    out.append("| case | mean (mm) | mean 15°–165° | max 30° | max 150° | max all | annotated: max 30° | max 150° | azimuth within 2° | s/fit |")
-    out.append("|---|---|---|---|---|---|---|---|---|---|")
+    out.append("| case | mean (mm) | mean 15°–165° | max 30° | max 150° | max all | annotated: max 30° | max 150° | azimuth within 2° | residual px | s/fit |")
+    out.append("|---|---|---|---|---|---|---|---|---|---|---|")
     for lab in labels:
         rs = [r for r in rows if case_label(r) == lab]
         mean = np.mean([r["mean_mm"] for r in rs])
@@ -123,7 +123,7 @@ def summarise(rows: list[dict]) -> str:
         sec = np.mean([r["seconds"] for r in rs])
         near = sum(abs((r["refined_azimuth"] - r["azimuth"] + 180) % 360 - 180) <= 2 for r in rs)
         out.append(f"| {lab} | {mean:.1f} | {mid:.1f} | {m30:.1f} | {m150:.1f} | {mx:.1f} | {a30:.1f} | {a150:.1f} "
-                   f"| {near}/{len(rs)} | {sec:.3f} |")
+                   f"| {near}/{len(rs)} | {np.mean([r['residual_px'] for r in rs]):.2f} | {sec:.3f} |")
     return "\n".join(out)
 
 

@@ -21,6 +21,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="keypoint file: project JSON, COCO keypoints or labelme")
     p.add_argument("--view", required=True, help="view azimuth, degrees 0–360 (0 front, 90 left side)")
     p.add_argument("--elevation", type=float, default=0.0, help="starting camera elevation, degrees")
+    p.add_argument("--roll", type=float, default=0.0,
+                   help="camera roll of a tilted photo, degrees (kept as given: the refinement "
+                        "moves azimuth and elevation only)")
     p.add_argument("--wheelbase", type=float, default=None,
                    help="real wheelbase, mm (default: the fitted mix of the templates' own)")
     p.add_argument("--exclude-template", action="append", default=[], metavar="NAME",
@@ -67,7 +70,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.wireframe import write_wireframe
 
     # Every input is checked before anything is written.
-    view = View(check_azimuth(args.view), args.elevation)
+    view = View(check_azimuth(args.view), args.elevation, args.roll)
     image = read_image(args.image)[..., ::-1].copy()  # RGB -> BGR: the overlay is drawn with OpenCV
     ann = read_keypoints(args.keypoints)
     h, w = image.shape[:2]
