@@ -30,26 +30,42 @@ NOISE_PX = 1.0
 OFFSET_DEG = 10.0
 
 
-def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, elevation: float = 0.0):
-    """Keypoints of a normalised (280, 3) car seen at a view: ({name: (u, v)}, (width, height))."""
-    from carbody.camera import View, project
+def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, elevation: float = 0.0,
+                   distance: float | None = None):
+    """Keypoints of a normalised (280, 3) car seen at a view: ({name: (u, v)}, (width, height)).
+
+    Args:
+        distance: None for SPEC's orthographic camera; else a pinhole camera this far from the
+            car's centre, in the car's own units (a real photo's perspective).
+    """
+    from carbody.camera import View, camera_direction, project
     from carbody.fit.visibility import visible_slots
 
     view = View(azimuth, elevation)
     both = np.concatenate([truth, truth * [-1.0, 1.0, 1.0]])
-    p = project(both, view)
+
+    def camera(points: np.ndarray) -> np.ndarray:
+        """Image coordinates at scale 1: orthographic, or pinhole (nearer points larger)."""
+        if distance is None:
+            return project(points, view)
+        centre = (both.min(axis=0) + both.max(axis=0)) / 2
+        toward = (points - centre) @ camera_direction(view)
+        c = project(centre, view)
+        return c + (project(points, view) - c) * (distance / (distance - toward))[:, None]
+
+    p = camera(both)
     scale = CAR_SPAN / np.ptp(p[:, 0])
     height = int(np.ceil(np.ptp(p[:, 1]) * scale + 2 * (IMAGE_WIDTH - CAR_SPAN) / 2))
     offset = (IMAGE_WIDTH / 2 - scale * (p[:, 0].min() + p[:, 0].max()) / 2,
               height / 2 - scale * (p[:, 1].min() + p[:, 1].max()) / 2)
     slots = visible_slots(view, truth)
     pts = np.array([truth[s.point_index] * s.sign for s in slots])
-    uv = project(pts, view, scale, offset) + rng.normal(0.0, NOISE_PX, (len(slots), 2))
+    uv = offset + scale * camera(pts) + rng.normal(0.0, NOISE_PX, (len(slots), 2))
     return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, (IMAGE_WIDTH, height)
 
 
 def run_template(args) -> list[dict]:
-    t, cases, lambdas, angles, elevation = args
+    t, cases, lambdas, angles, elevation, distance_mm = args
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
     from carbody.topology import load_topology
@@ -64,23 +80,32 @@ def run_template(args) -> list[dict]:
     rng = np.random.default_rng(1000 + t)
     rows = []
     for azimuth in angles:
-        kps, size = synthetic_view(truth, azimuth, rng, elevation)
+        distance = None if distance_mm is None else distance_mm * 1000.0 / wb  # normalised units
+        kps, size = synthetic_view(truth, azimuth, rng, elevation, distance)
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
-        for method, lam, offset, refine, deform, *level in cases + [("mixture", l, 0.0, False, True) for l in lambdas]:
-            given_elevation = 0.0 if level and level[0] else elevation
+        for method, lam, offset, refine, deform, *extra in cases + [("mixture", l, 0.0, False, True) for l in lambdas]:
+            level, camera = (list(extra) + [False, None])[:2]
+            given_elevation = 0.0 if level else elevation
+            kw_camera = {}
+            if camera == "told":
+                kw_camera["camera_distance_mm"] = distance_mm
+            elif camera == "auto":
+                kw_camera["camera_distance_mm"] = "auto"
             t0 = time.perf_counter()
             kw = {"prior_weight": lam} if lam is not None else {}
             from carbody.camera import View
 
             res = fit_wireframe(kps, View(azimuth + offset, given_elevation), loo, image_size=size,
                                 wheelbase_mm=wb, method=method, refine=refine,
-                                deform=deform and method != "paper", **kw)
+                                deform=deform and method != "paper", **kw, **kw_camera)
             dt = time.perf_counter() - t0
             err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
             rows.append({"template": name, "azimuth": azimuth, "method": method, "lambda": lam,
                          "offset": offset, "refine": refine, "deform": deform and method != "paper",
-                         "given_elevation": given_elevation, "elevation": elevation,
+                         "given_elevation": given_elevation, "elevation": elevation, "camera": camera,
+                         "refined_distance_mm": None if res.view.distance is None
+                         else res.view.distance * wb / 1000.0,
                          "k": len(kps),
                          "mean_mm": float(err.mean()), "max_mm": float(err.max()),
                          "annotated_mean_mm": float(err[ann_idx].mean()),
@@ -103,6 +128,10 @@ def case_label(r: dict) -> str:
             lab += f", elevation given as {r['given_elevation']:g}°"
     else:
         lab += ", view known" + (", refined" if r["refine"] else "")
+    if r.get("camera") == "told":
+        lab += ", fit told the distance"
+    elif r.get("camera") == "auto":
+        lab += ", distance found by the fit"
     return lab
 
 
@@ -154,6 +183,9 @@ def main(argv=None) -> int:
     ap.add_argument("--elevation", type=float, default=0.0,
                     help="camera elevation of the synthetic views (degrees; given to the fit)")
     ap.add_argument("--known-only", action="store_true", help="only the view-known cases")
+    ap.add_argument("--distance", type=float, default=None,
+                    help="photograph with a pinhole camera this far from the car's centre (mm) "
+                         "instead of SPEC's orthographic one; the fit still assumes orthographic")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -169,15 +201,21 @@ def main(argv=None) -> int:
     if args.elevation:
         # A photo's elevation is rarely known: start the refinement level, as `carbody reconstruct` does.
         cases += [("gauss", None, OFFSET_DEG, True, True, True), ("mixture", None, OFFSET_DEG, True, True, True)]
+    if args.distance is not None:
+        # A pinhole photo: the orthographic fit against one told the distance and one finding it.
+        cases = [("mixture", None, 0.0, False, True), ("mixture", None, 0.0, False, True, False, "told"),
+                 ("mixture", None, 0.0, True, True), ("mixture", None, 0.0, True, True, False, "auto"),
+                 ("mixture", None, OFFSET_DEG, True, True, False, "auto")]
     if args.known_only:
         cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
-        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation)
+        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance)
                                                          for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
-          f"elevation {args.elevation:g}°, {NOISE_PX:g} px noise on a {IMAGE_WIDTH} px wide image "
+          f"elevation {args.elevation:g}°, "
+          f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}, {NOISE_PX:g} px noise on a {IMAGE_WIDTH} px wide image "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
     print("\nWheelbase the fit estimates when none is given (the mix's own), error vs the truth, view known:\n")

@@ -83,7 +83,7 @@ def main(argv=None) -> int:
     rows = []
     basis = KeypointBasis.from_shapes(lib.S, idx)
     t_ours, sol = median_time(lambda: solve_simplex(basis, slots, uv, view), 50)
-    M, Mc, z, b, rho = _centred(slots, uv, view)
+    M, _, Mc, _, z, b, rho = _centred(slots, uv, view)
     A = (Mc @ basis.X.reshape(105, -1)) / basis.size
     t_nnls, (x_nnls, r_nnls) = median_time(lambda: nnls(A, b), 5)
     t_bvls, res_bvls = median_time(lambda: lsq_linear(A, b, bounds=(0, np.inf), method="bvls"), 3)

@@ -4,7 +4,10 @@ A view is an azimuth θ around z (0° front, 90° left side, 180° rear, 270° r
 elevation φ above the horizon and a roll ψ of the image about the viewing axis. The unit vector
 from the car toward the camera is d = (sin θ cos φ, −cos θ cos φ, sin φ); forward f = −d,
 image-right r = (f × ẑ)/|f × ẑ|, image-up w = r × f, both turned by the roll. A point p (car frame)
-lands at u = u0 + s·(p·r), v = v0 − s·(p·w): orthographic, pixels, v down.
+lands at u = u0 + s·(p·r), v = v0 − s·(p·w): orthographic, pixels, v down. A view may also
+carry a camera distance D from an aim point a (a pinhole camera, a real photo's perspective): the
+offset from the aim's image is then scaled by k = D / (D − (p − a)·d), nearer points larger, and
+D → ∞ is the orthographic camera.
 
 The paper writes the same camera as a rotation R = Rz(γ)·Ry(β)·Rx(α) (eq. 1) followed by dropping
 x; :func:`view_rotation` gives that R with rows (d, r, w) and :func:`eq1_angles` its (α, β, γ).
@@ -30,11 +33,16 @@ class View:
         elevation: φ, camera height angle above the horizon (+ looking down at the car).
         roll: ψ about the viewing axis; + turns the picture's content counter-clockwise
             (image-up becomes w·cos ψ + r·sin ψ).
+        distance: None for the orthographic camera of the contract; else a pinhole camera this
+            far from ``aim`` along d, in the unit of the projected points.
+        aim: (3,) the point the pinhole camera looks at, same unit.
     """
 
     azimuth: float
     elevation: float = 0.0
     roll: float = 0.0
+    distance: float | None = None
+    aim: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         for name in ("azimuth", "elevation", "roll"):
@@ -42,6 +50,8 @@ class View:
                 raise AngleError(f"view {name} is not a finite number")
         if abs(self.elevation) > MAX_ABS_ELEVATION_DEG:
             raise AngleError(f"view elevation {self.elevation:g}° is outside ±{MAX_ABS_ELEVATION_DEG:g}°")
+        if self.distance is not None and not (np.isfinite(self.distance) and self.distance > 0):
+            raise AngleError(f"camera distance {self.distance!r} is not a positive number")
 
     def as_dict(self) -> dict[str, float]:
         return {"azimuth_deg": float(self.azimuth), "elevation_deg": float(self.elevation),
@@ -112,9 +122,33 @@ def project(points: np.ndarray, view: View, scale: float = 1.0,
     """
     rot = view_rotation(view)
     p = np.asarray(points, dtype=float)
+    if view.distance is not None:
+        aim = np.asarray(view.aim, dtype=float)
+        p = aim + (p - aim) * perspective_factors(p, view)[..., None]
     u = offset[0] + scale * (p @ rot[1])
     v = offset[1] - scale * (p @ rot[2])
     return np.stack([u, v], axis=-1)
+
+
+def perspective_factors(points: np.ndarray, view: View, max_factor: float | None = None) -> np.ndarray:
+    """(...,) float, k = D / (D − (p − aim)·d): how much larger the pinhole camera shows each
+    point than the orthographic one (1 everywhere for an orthographic view).
+
+    Args:
+        max_factor: clamp k to this instead of refusing points near or behind the camera (a
+            fit's intermediate shapes may stray there).
+    Raises:
+        AngleError: a point at or behind the camera (without ``max_factor``).
+    """
+    p = np.asarray(points, dtype=float)
+    if view.distance is None:
+        return np.ones(p.shape[:-1])
+    gap = view.distance - (p - np.asarray(view.aim, dtype=float)) @ camera_direction(view)
+    if max_factor is not None:
+        return view.distance / np.maximum(gap, view.distance / max_factor)
+    if np.any(gap <= 1e-6 * view.distance):
+        raise AngleError(f"camera distance {view.distance:g} puts the camera inside the car")
+    return view.distance / gap
 
 
 def depth(points: np.ndarray, view: View) -> np.ndarray:
@@ -124,7 +158,8 @@ def depth(points: np.ndarray, view: View) -> np.ndarray:
 
 def mirror_view(view: View) -> View:
     """The view of the other side: θ ↔ 360° − θ (the image flips left–right, roll changes sign)."""
-    return View((360.0 - view.azimuth) % 360.0, view.elevation, -view.roll)
+    return View((360.0 - view.azimuth) % 360.0, view.elevation, -view.roll, view.distance,
+                (-view.aim[0], view.aim[1], view.aim[2]))
 
 
 def parse_view(view: str | float) -> float:

@@ -99,6 +99,7 @@ class Reconstruction:
         v = self.fit.view
         view: dict[str, Any] = {"source": self.view_source, "azimuth_deg": v.azimuth,
                                 "elevation_deg": v.elevation, "roll_deg": v.roll,
+                                "camera_distance_mm": self.fit.camera_distance_mm,
                                 "given_azimuth_deg": self.fit.given_view.azimuth}
         if self.view_prediction is not None:
             p = self.view_prediction
@@ -243,7 +244,8 @@ def _read_inputs(image, keypoints):
 
 
 def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float | None = None, *,
-                elevation_deg: float = 0.0, name: str | None = None, library=None,
+                elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
+                name: str | None = None, library=None,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
 
@@ -254,6 +256,9 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
             shipped view classifier.
         wheelbase_mm: the car's real wheelbase; None uses the fitted mix of the templates'.
         elevation_deg: starting camera elevation for the view refinement.
+        camera_distance_mm: how far the camera stood from the car's centre (a pinhole camera:
+            nearer parts look larger); "auto" (default: photos are taken from a few metres)
+            finds it with the view; None assumes a distant (orthographic) camera.
         name: the car's name in the STEP files (default: the photo's file stem).
         library: a :class:`carbody.library.Library` (default the shipped one).
         on_stage: called with each stage's name as it starts (progress display).
@@ -290,7 +295,8 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     from carbody.camera import check_azimuth
 
     fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
-                        image_size=(w, h), wheelbase_mm=wheelbase_mm, name=name)
+                        image_size=(w, h), wheelbase_mm=wheelbase_mm,
+                        camera_distance_mm=camera_distance_mm, name=name)
     timings["fit"] = time.perf_counter() - start
 
     start = stage("surfaces")

@@ -7,6 +7,8 @@ from pathlib import Path
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
+    from carbody.fit.cli import DISTANCE_HELP
+
     p = sub.add_parser("reconstruct", help="photo + keypoints -> wireframe and body STEP, pictures, report",
                        description="Run view (unless --view is given) -> fit -> surfaces and write "
                                    "wireframe.step, body.step, car.step (assembly), overlay.png, body.png, "
@@ -18,6 +20,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="view azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side); "
                         "default: the shipped view classifier")
     p.add_argument("--wheelbase", type=float, default=None, help="the car's wheelbase in mm (default: fitted)")
+    p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
+                   help=DISTANCE_HELP + "; default auto")
     p.add_argument("--truth", default=None, help="ground truth wireframe STEP or template name: adds 3D errors")
     p.add_argument("--name", default=None, help="the car's name in the STEP files (default: photo file stem)")
     p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
@@ -35,8 +39,10 @@ def load_truth(spec: str):
 def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
     from tqdm import tqdm
 
+    from carbody.fit.cli import parse_distance
     from carbody.pipeline import STAGES, prepare_output_dir, reconstruct
 
+    distance = parse_distance(getattr(args, "distance", "auto"))
     prepare_output_dir(args.out)  # fail before the work, not after
     truth = load_truth(args.truth) if args.truth else None
     with tqdm(total=len(STAGES) + 1, desc="carbody", unit="stage", file=sys.stderr,
@@ -47,7 +53,7 @@ def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
             bar.set_description(label)
 
         result = reconstruct(args.image, args.keypoints, args.view, args.wheelbase, name=args.name,
-                             on_stage=on_stage)
+                             camera_distance_mm=distance, on_stage=on_stage)
         bar.update(1)
         bar.set_description("write")
         paths = result.write(args.out, truth)

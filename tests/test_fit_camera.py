@@ -80,3 +80,30 @@ def test_level_view_cannot_tell_azimuth_from_width_and_height(theta, other):
     A[0::2, 0], A[1::2, 0], A[0::2, 1], A[1::2, 2] = unit[:, 0], unit[:, 1], 1.0, 1.0
     fit, *_ = np.linalg.lstsq(A, target.ravel(), rcond=None)
     assert np.sqrt(np.mean((A @ fit - target.ravel()) ** 2)) > 1.0
+
+
+def test_pinhole_view_shows_nearer_points_larger_and_tends_to_orthographic():
+    """A pinhole view magnifies what is nearer the camera; far away it is the orthographic one."""
+    from carbody.camera import perspective_factors
+
+    view = View(90, 10, 0, 6000.0, (0.0, 1400.0, 500.0))
+    near, far = np.array([900.0, 1400.0, 500.0]), np.array([-900.0, 1400.0, 500.0])
+    k = perspective_factors(np.stack([near, far]), view)
+    assert k[0] > 1.0 > k[1]
+    aim = project(np.array(view.aim), view, 0.5, (100, 200))
+    np.testing.assert_allclose(aim, project(np.array(view.aim), View(90, 10), 0.5, (100, 200)))
+    distant = View(90, 10, 0, 1e12, view.aim)
+    pts = np.random.default_rng(0).uniform(-2000, 2000, (20, 3))
+    np.testing.assert_allclose(project(pts, distant, 0.5), project(pts, View(90, 10), 0.5), atol=1e-4)
+    # The mirrored car in the mirrored pinhole view is the mirrored picture.
+    m = mirror_view(view)
+    np.testing.assert_allclose(project(pts * [-1, 1, 1], m)[:, 0], -project(pts, view)[:, 0], atol=1e-9)
+
+
+def test_camera_inside_the_car_is_refused():
+    from carbody.camera import perspective_factors
+
+    with pytest.raises(AngleError, match="inside"):
+        perspective_factors(np.array([[0.0, 3000.0, 0.0]]), View(180, 0, 0, 1000.0))
+    with pytest.raises(AngleError, match="positive"):
+        View(30, 0, 0, -5.0)

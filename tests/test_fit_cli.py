@@ -69,14 +69,14 @@ def test_visible_keypoints_command():
     assert "rear_arch_top" in proc.stdout and "_right" not in proc.stdout
 
 
-def _bad(photo, tmp_path, keypoints=None, view="30", image=None):
+def _bad(photo, tmp_path, keypoints=None, view="30", image=None, extra=()):
     kfile = photo / "car.json"
     if keypoints is not None:
         kfile = tmp_path / "k.json"
         kfile.write_text(json.dumps({"keypoints": keypoints}))
     out = tmp_path / "x.step"
     proc = run_cli("fit", str(image or photo / "car.png"), "--keypoints", str(kfile), "--view", view,
-                   "-o", str(out), "--overlay", str(tmp_path / "x.png"))
+                   "-o", str(out), "--overlay", str(tmp_path / "x.png"), *extra)
     assert proc.returncode == 2, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert not out.exists() and not (tmp_path / "x.png").exists()
@@ -94,6 +94,21 @@ def test_bad_inputs_exit_2_with_one_line_and_no_output(photo, tmp_path):
     junk = tmp_path / "junk.png"
     junk.write_bytes(b"not an image")
     assert "not an image" in _bad(photo, tmp_path, image=junk)
+    assert "neither a number" in _bad(photo, tmp_path, extra=("--distance", "far"))
+    assert "positive" in _bad(photo, tmp_path, extra=("--distance", "-3"))
+    assert "inside or at the car" in _bad(photo, tmp_path, extra=("--distance", "900"))
+    assert "orthographic" in _bad(photo, tmp_path, extra=("--distance", "6000", "--method", "paper"))
+
+
+def test_fit_with_a_camera_distance_reports_it(photo):
+    out = photo / "dist"
+    out.mkdir()
+    run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
+            "--distance", "auto", "-o", str(out / "car.step"), "--report", str(out / "r.json"), check=True)
+    rep = json.loads((out / "r.json").read_text())
+    # The test photo is orthographic: "auto" finds a camera far away.
+    assert rep["camera_distance_mm"] is None or rep["camera_distance_mm"] > 30_000
+    assert rep["residual_px_mean"] < 3
 
 
 def test_cli_method_choices_are_the_solver_methods():

@@ -185,3 +185,40 @@ def test_deformation_leaves_a_library_car_alone(library, topology):
     res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, 45, library, wheelbase_mm=1000.0,
                         refine=False, method="paper", deform=True)
     assert res.deformation_mm < 0.5
+
+
+def _pinhole_observe(truth, view, distance, scale=0.5, offset=(500.0, 300.0), noise=0.0, seed=0):
+    """Keypoints of a car photographed by a pinhole camera ``distance`` from its centre."""
+    both = np.concatenate([truth, truth * [-1, 1, 1]])
+    centre = (both.min(axis=0) + both.max(axis=0)) / 2
+    cam = View(view.azimuth, view.elevation, view.roll, distance, tuple(centre))
+    slots = visible_slots(view, truth)
+    pts = np.array([truth[s.point_index] * s.sign for s in slots])
+    uv = project(pts, cam, scale, offset) + np.random.default_rng(seed).normal(0, noise, (len(pts), 2))
+    return {s.name: p for s, p in zip(slots, uv)}
+
+
+def test_photo_from_a_few_metres_needs_the_pinhole_camera(library, topology):
+    """A library car photographed from 2.2 wheelbases (≈ 6 m): the orthographic fit is far off,
+    the fit told the distance lands on the marks and near the car, and "auto" finds the distance."""
+    t = 3
+    truth = library.points(_original(library, t))
+    kps = _pinhole_observe(truth, View(30, 10), 2200.0, noise=0.5)
+    kp = topology.keypoint_point_indices
+    wb_mm = library.template_wheelbase_mm[t]
+
+    def error(res):
+        return np.linalg.norm(res.wireframe.control_points[kp] - truth[kp], axis=1).mean() * wb_mm / 1000
+
+    ortho = fit_wireframe(kps, View(30, 10), library, wheelbase_mm=1000.0, refine=False)
+    told = fit_wireframe(kps, View(30, 10), library, wheelbase_mm=1000.0, refine=False,
+                         camera_distance_mm=2200.0)
+    auto = fit_wireframe(kps, View(30, 10), library, wheelbase_mm=1000.0, camera_distance_mm="auto")
+    assert error(told) < 15 and error(auto) < 25 and error(ortho) > 3 * error(told)
+    assert np.mean(list(told.residuals_px().values())) < 1.5
+    assert auto.view.distance == pytest.approx(2200.0, rel=0.15)
+    assert abs(auto.view.azimuth - 30) < 2
+    with pytest.raises(Exception, match="orthographic"):
+        fit_wireframe(kps, 30, library, method="paper", camera_distance_mm=6000.0)
+    with pytest.raises(Exception, match="inside or at the car"):
+        fit_wireframe(kps, 30, library, camera_distance_mm=500.0)

@@ -9,6 +9,27 @@ from pathlib import Path
 #: numpy (a test checks the two agree).
 METHOD_CHOICES = ("mixture", "gauss", "paper")
 
+DISTANCE_HELP = ("how far the camera stood from the car's centre, mm (a photo from a few metres "
+                 "shows nearer parts larger), 'auto' to find it, or 'orthographic' for a distant "
+                 "camera (SPEC's)")
+
+
+def parse_distance(text: str | None) -> float | str | None:
+    """``--distance``: None or "orthographic" (orthographic), "auto" or a positive number of mm."""
+    from carbody.errors import FitError
+
+    if text is None or text == "orthographic":
+        return None
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise FitError(f"--distance {text!r} is neither a number of mm nor 'auto'") from None
+    if not (value > 0 and value < float("inf")):
+        raise FitError(f"--distance {text!r} is not a positive number of mm")
+    return value
+
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -31,6 +52,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", choices=METHOD_CHOICES, default=METHOD_CHOICES[0],
                    help="mixture: Gaussian shape prior around each template (default); gauss: one "
                         "Gaussian around the library mean; paper: the paper's plain ΣH=1, 0≤H≤1")
+    p.add_argument("--distance", default="orthographic", metavar="MM|auto|orthographic",
+                   help=DISTANCE_HELP + "; default orthographic")
     p.add_argument("--no-refine", action="store_true", help="keep the given view as it is")
     p.add_argument("--no-deform", action="store_true",
                    help="keep the library mix as it is (no smooth move onto the marked keypoints)")
@@ -71,6 +94,7 @@ def run_fit(args: argparse.Namespace) -> int:
 
     # Every input is checked before anything is written.
     view = View(check_azimuth(args.view), args.elevation, args.roll)
+    distance = parse_distance(args.distance)
     image = read_image(args.image)[..., ::-1].copy()  # RGB -> BGR: the overlay is drawn with OpenCV
     ann = read_keypoints(args.keypoints)
     h, w = image.shape[:2]
@@ -84,6 +108,7 @@ def run_fit(args: argparse.Namespace) -> int:
     result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                            method=args.method, refine=not args.no_refine,
                            deform=False if args.no_deform else None,
+                           camera_distance_mm=distance,
                            name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
     report = build_report(result, truth) if (args.report or truth is not None) else None

@@ -100,13 +100,13 @@ class DeformationField:
         Returns:
             (3·P,) float, the deformed shape.
         """
-        from carbody.fit.solve import projection_rows
+        from carbody.fit.solve import camera_rows
 
-        rows = projection_rows(slots, view)  # (2k, 35, 3)
+        keypoints = shape.reshape(-1, 3)[point_indices]
+        rows, const = camera_rows(slots, view, keypoints)  # (2k, 35, 3), (2k,)
         at_keypoints = self.basis.reshape(-1, 3, self.basis.shape[1])[point_indices]
         A = scale * np.einsum("rkc,kcq->rq", rows, at_keypoints)
-        keypoints = shape.reshape(-1, 3)[point_indices]
-        predicted = offset + scale * np.einsum("rkc,kc->r", rows, keypoints).reshape(-1, 2)
+        predicted = offset + scale * (np.einsum("rkc,kc->r", rows, keypoints) + const).reshape(-1, 2)
         r = (np.asarray(uv, dtype=float) - predicted).ravel()
         gram = A @ A.T + (noise * scale) ** 2 * np.eye(len(r))
         a = A.T @ np.linalg.solve(gram, r)

@@ -34,8 +34,14 @@ ELEVATION_RANGE_DEG = (-20.0, 60.0)
 #: How far (degrees) the refined roll may move from the given one.
 ROLL_RANGE_DEG = 20.0
 
-#: The angles refined by default (see the module docstring for why not roll).
+#: The angles refined by default (see the module docstring for why not roll). "perspective"
+#: (a pinhole view's 1/distance) can be added.
 DEFAULT_FREE = ("azimuth", "elevation")
+
+#: A pinhole view's perspective is refined as ρ = PERSPECTIVE_LENGTH / distance (distance in the
+#: fit's normalised units, so ρ is wheelbases per distance), within 0 (orthographic) … 1.
+PERSPECTIVE_LENGTH = 1000.0
+PERSPECTIVE_RANGE = (0.0, 1.0)
 
 #: Azimuth offsets (degrees) tried before the continuous refinement.
 AZIMUTH_SCAN_DEG = (-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0)
@@ -55,14 +61,23 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
             ``evidence`` (float or None).
         given: the starting view.
         max_evaluations: budget of solves for the continuous stage.
-        free: the angles refined (the others stay as given).
+        free: what is refined (the rest stays as given): "azimuth", "elevation", "roll",
+            "perspective" (1/distance of a pinhole view; ``given.distance`` None starts it
+            orthographic).
     Returns:
         (refined View, its solution).
     """
     from scipy.optimize import least_squares
 
-    from carbody.errors import FitError
+    from carbody.errors import AngleError, FitError
 
+    def view_at(x) -> View:
+        """View from (azimuth, elevation, roll, ρ)."""
+        rho = float(x[3])
+        return View(float(x[0]), float(x[1]), float(x[2]),
+                    None if rho <= 0 else PERSPECTIVE_LENGTH / rho, given.aim)
+
+    rho0 = 0.0 if given.distance is None else PERSPECTIVE_LENGTH / given.distance
     best_view, best = given, solve_at(given)
 
     def score(sol) -> float:
@@ -71,19 +86,23 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     azimuths = AZIMUTH_SCAN_DEG if "azimuth" in free else (0.0,)
     elevations = [e for e in ELEVATION_SCAN_DEG if ELEVATION_RANGE_DEG[0] <= given.elevation + e
                   <= ELEVATION_RANGE_DEG[1]] if "elevation" in free else [0.0]
-    for d, e in ((d, e) for d in azimuths for e in elevations):
-        if d == 0 and e == 0:
+    # A free perspective is scanned both ways: a photo from afar looks orthographic.
+    rhos = sorted({0.0, rho0}) if "perspective" in free else [rho0]
+    for d, e, rho in ((d, e, rho) for d in azimuths for e in elevations for rho in rhos):
+        if d == 0 and e == 0 and rho == rho0:
             continue
-        v = View(given.azimuth + d, given.elevation + e, given.roll)
+        v = view_at((given.azimuth + d, given.elevation + e, given.roll, rho))
         try:
             sol = solve_at(v)
-        except FitError:
+        except (FitError, AngleError):
             continue
         if score(sol) < score(best):
             best_view, best = v, sol
 
-    lo = np.array([given.azimuth - AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[0], given.roll - ROLL_RANGE_DEG])
-    hi = np.array([given.azimuth + AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[1], given.roll + ROLL_RANGE_DEG])
+    lo = np.array([given.azimuth - AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[0], given.roll - ROLL_RANGE_DEG,
+                   min(PERSPECTIVE_RANGE[0], rho0)])
+    hi = np.array([given.azimuth + AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[1], given.roll + ROLL_RANGE_DEG,
+                   max(PERSPECTIVE_RANGE[1], rho0)])
     lo[1], hi[1] = min(lo[1], given.elevation), max(hi[1], given.elevation)
     cache: dict[tuple, object] = {}
 
@@ -91,13 +110,14 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
         key = tuple(np.round(x, 12))
         if key not in cache:
             try:
-                cache[key] = solve_at(View(*x))
-            except FitError:
+                cache[key] = solve_at(view_at(x))
+            except (FitError, AngleError):
                 cache[key] = None
         return cache[key]
 
-    mask = np.array([n in free for n in ("azimuth", "elevation", "roll")])
-    start = np.array([best_view.azimuth, best_view.elevation, best_view.roll])
+    mask = np.array([n in free for n in ("azimuth", "elevation", "roll", "perspective")])
+    start = np.array([best_view.azimuth, best_view.elevation, best_view.roll,
+                      0.0 if best_view.distance is None else PERSPECTIVE_LENGTH / best_view.distance])
 
     def full(x: np.ndarray) -> np.ndarray:
         out = start.copy()
@@ -115,11 +135,12 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
             sol = solved(y)
             return np.inf if sol is None else sol.evidence
 
-        simplex = np.vstack([x0] + [x0 + 2.0 * np.eye(len(x0))[i] for i in range(len(x0))])
+        steps = np.array([2.0, 2.0, 2.0, 0.1])[mask]  # degrees; ρ
+        simplex = np.vstack([x0] + [x0 + steps[i] * np.eye(len(x0))[i] for i in range(len(x0))])
         found = minimize(objective, x0, method="Nelder-Mead",
                          options={"initial_simplex": simplex, "xatol": 0.01, "fatol": 1e-3,
                                   "maxfev": 3 * max_evaluations})
-        refined = View(*full(found.x))
+        refined = view_at(full(found.x))
     else:
         def residual(x: np.ndarray) -> np.ndarray:
             sol = solved(full(x))
@@ -127,7 +148,7 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
 
         fit = least_squares(residual, x0, bounds=(lo[mask], hi[mask]), x_scale=1.0,
                             diff_step=1e-4, max_nfev=max_evaluations, method="trf")
-        refined = View(*full(fit.x))
+        refined = view_at(full(fit.x))
     sol = solve_at(refined)
     if score(sol) <= score(best):
         return refined, sol

@@ -48,6 +48,7 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "given_view": result.given_view.as_dict(),
         "refined_view": result.view.as_dict(),
         "image_scale_px_per_mm": result.solution.scale / result.mm_per_unit,
+        "camera_distance_mm": result.camera_distance_mm,
         "image_offset_px": [float(v) for v in result.solution.offset],
         "wheelbase_mm": result.wheelbase_mm,
         "keypoints_annotated": len(result.slots),

@@ -14,9 +14,9 @@ from carbody.errors import FitError
 from carbody.camera import View, project
 from carbody.fit.deform import DeformationField
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
-from carbody.fit.refine import refine_view
+from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, KeypointBasis, MixSolution,
-                               ShapeModel, solve_gauss, solve_simplex)
+                               ShapeModel, car_centre, solve_gauss, solve_simplex)
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
@@ -80,6 +80,11 @@ class FitResult:
     def mm_per_unit(self) -> float:
         return self.wheelbase_mm / NORMALISED_WHEELBASE
 
+    @property
+    def camera_distance_mm(self) -> float | None:
+        """A pinhole view's camera distance from the car's centre, mm (None: orthographic)."""
+        return None if self.view.distance is None else float(self.view.distance * self.mm_per_unit)
+
     def keypoints_mm(self) -> dict[str, list[float]]:
         """{name: [x, y, z] mm} of the 35 left keypoints and the mirrors of those annotated."""
         out = self.wireframe.keypoints()
@@ -128,7 +133,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                   library: Library | None = None, *, image_size: tuple[int, int] | None = None,
                   wheelbase_mm: float | None = None, method: str = METHODS[0],
                   prior_weight: float = DEFAULT_PRIOR_WEIGHT, refine: bool = True,
-                  deform: bool | None = None, name: str = "fitted car") -> FitResult:
+                  deform: bool | None = None, camera_distance_mm: float | str | None = None,
+                  name: str = "fitted car") -> FitResult:
     """Fit the car's 3D wireframe to keypoints marked on one photo.
 
     Args:
@@ -146,6 +152,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         deform: move the mix onto the annotated keypoints with a smooth symmetric field
             (:mod:`carbody.fit.deform`); default on for ``"gauss"``/``"mixture"``, off for
             ``"paper"`` (the paper's method as published).
+        camera_distance_mm: None for SPEC's orthographic camera; a number for a pinhole camera
+            that far from the car's centre (a photo taken from a few metres shows nearer parts
+            larger); ``"auto"`` to refine the distance with the view (Gaussian-prior methods).
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -182,11 +191,19 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         def solve_at(v: View) -> MixSolution:
             return solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture")
 
+    free = DEFAULT_FREE
+    if camera_distance_mm is not None:
+        view = _pinhole(view, camera_distance_mm, model, wheelbase_mm, library)
+        if camera_distance_mm == "auto":
+            free = DEFAULT_FREE + ("perspective",)
     if refine:
-        refined, sol = refine_view(solve_at, view)
+        refined, sol = refine_view(solve_at, view, free=free)
     else:
         refined, sol = view, solve_at(view)
-    refined = View(float(refined.azimuth) % 360.0, float(refined.elevation), float(refined.roll))
+    if sol.view is not None:
+        refined = sol.view  # a pinhole view's aim, settled on the fitted car
+    refined = View(float(refined.azimuth) % 360.0, float(refined.elevation), float(refined.roll),
+                   refined.distance, refined.aim)
     if sol.shape is None:
         sol.shape = library.S[:, sol.support] @ sol.H[sol.support]
     moved = 0.0
@@ -205,3 +222,30 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     return FitResult(wireframe=Wireframe(name, points), view=refined, given_view=view, solution=sol,
                      slots=slots, uv=uv, wheelbase_mm=float(wheelbase_mm), method=method,
                      library=library, deformation_mm=moved * wheelbase_mm / NORMALISED_WHEELBASE)
+
+
+#: Where ``camera_distance_mm="auto"`` starts: 2.5 wheelbases (≈ 7 m), a typical photo.
+AUTO_START_WHEELBASES = 2.5
+
+
+def _pinhole(view: View, camera_distance_mm: float | str, model, wheelbase_mm: float | None,
+             library: Library) -> View:
+    """The given view as a pinhole camera aimed at the library mean's centre (normalised units)."""
+    if not isinstance(model, ShapeModel):
+        raise FitError("the paper's solve is orthographic: use --method mixture or gauss with a "
+                       "camera distance")
+    points = model.mean.reshape(-1, 3)
+    aim = car_centre(model.mean)
+    if camera_distance_mm == "auto":
+        distance = AUTO_START_WHEELBASES * PERSPECTIVE_LENGTH
+    else:
+        try:
+            value = float(camera_distance_mm)
+        except (TypeError, ValueError):
+            raise FitError(f"camera distance {camera_distance_mm!r} is not a number or 'auto'") from None
+        wb = wheelbase_mm if wheelbase_mm is not None else float(np.mean(library.template_wheelbase_mm))
+        distance = value / (wb / NORMALISED_WHEELBASE)
+        half_length = float(np.ptp(points[:, 1])) / 2
+        if not (np.isfinite(distance) and distance > 1.2 * half_length):
+            raise FitError(f"camera distance {camera_distance_mm!r} mm is inside or at the car")
+    return View(view.azimuth, view.elevation, view.roll, distance, aim)

@@ -45,6 +45,12 @@ SHAPE_ENERGY = 0.99999
 #: Most principal components the shape model computes.
 MAX_COMPONENTS = 200
 
+#: Fixed-point rounds of a pinhole-camera solve (the perspective factors settle in 2–3).
+PERSPECTIVE_ITERATIONS = 3
+
+#: Largest perspective factor a solve uses (a point 5× nearer than the aim's distance).
+MAX_PERSPECTIVE_FACTOR = 5.0
+
 #: Fit methods, default first.
 METHODS = ("mixture", "gauss", "paper")
 
@@ -164,6 +170,7 @@ class MixSolution:
         support: models with positive weight (``"paper"``; used to warm-start the next solve).
         evidence: −log marginal likelihood of the view with the shape integrated out, up to a
             constant (``"gauss"``/``"mixture"``; the view refinement minimises it).
+        view: the camera solved with (a pinhole view's aim moved onto the car's centre).
     """
 
     shape: np.ndarray | None
@@ -175,6 +182,7 @@ class MixSolution:
     residual_vector: np.ndarray
     support: np.ndarray | None = None
     evidence: float | None = None
+    view: View | None = None
 
 
 def nnls_active_set(A: np.ndarray, b: np.ndarray, passive: np.ndarray | None = None,
@@ -266,23 +274,57 @@ def projection_rows(slots: list[KeypointSlot], view: View) -> np.ndarray:
     return M
 
 
-def _centred(slots: list[KeypointSlot], uv: np.ndarray, view: View):
-    """Projection rows and image coordinates centred per image axis (this removes the offset)."""
+def camera_rows(slots: list[KeypointSlot], view: View, keypoints: np.ndarray | None = None):
+    """The camera as a linear map of the 35 keypoints: image coordinates at scale 1 are
+    M·X + const (exact for an orthographic view; a pinhole view is linearised at ``keypoints``,
+    (35, 3), whose perspective factors k it freezes).
+
+    Returns:
+        (M (2k, 35, 3) float, const (2k,) float).
+    """
     M = projection_rows(slots, view)
-    Mc = M.copy()
-    Mc[0::2] -= M[0::2].mean(axis=0)
-    Mc[1::2] -= M[1::2].mean(axis=0)
+    const = np.zeros(len(M))
+    if view.distance is None:
+        return M, const
+    from carbody.camera import perspective_factors
+
+    pts = np.array([keypoints[s.keypoint_id - 1] * s.sign for s in slots])
+    # A stray intermediate shape may reach the camera; its evidence will tell, so clamp.
+    k = perspective_factors(pts, view, max_factor=MAX_PERSPECTIVE_FACTOR)
+    rot, aim = view_rotation(view), np.asarray(view.aim, dtype=float)
+    # u = s·(aim·r + k·(p − aim)·r) = s·(k·p·r + (1 − k)·aim·r); v likewise with −w.
+    M *= np.repeat(k, 2)[:, None, None]
+    const[0::2] = (1.0 - k) * (aim @ rot[1])
+    const[1::2] = -(1.0 - k) * (aim @ rot[2])
+    return M, const
+
+
+def _centred(slots: list[KeypointSlot], uv: np.ndarray, view: View, keypoints: np.ndarray | None = None):
+    """Camera rows and image coordinates centred per image axis (this removes the offset).
+
+    Returns:
+        (M, const, Mc (2k, 105), const centred (2k,), z (k, 2), centred image / rho, rho).
+    """
+    M, const = camera_rows(slots, view, keypoints)
+    Mc, cc = M.copy(), const.copy()
+    for axis in (0, 1):
+        Mc[axis::2] -= M[axis::2].mean(axis=0)
+        cc[axis::2] -= const[axis::2].mean()
     z = np.asarray(uv, dtype=float)
     zc = (z - z.mean(axis=0)).ravel()
     rho = float(np.sqrt(np.mean(zc**2)))
     if not rho > 0:
         raise FitError("the keypoints are coincident")
-    return M, Mc.reshape(len(M), -1), z, zc / rho, rho
+    return M, const, Mc.reshape(len(M), -1), cc, z, zc / rho, rho
 
 
-def _image_fit(M: np.ndarray, keypoints: np.ndarray, z: np.ndarray, scale: float):
+def _image_fit(M: np.ndarray, keypoints: np.ndarray, z: np.ndarray, scale: float,
+               const: np.ndarray | None = None):
     """Offset, predicted pixels and residual of a model's keypoints (35, 3) at a given scale."""
-    proj = np.einsum("rkc,kc->r", M, keypoints).reshape(-1, 2)  # (u − u0, v − v0) at scale 1
+    proj = np.einsum("rkc,kc->r", M, keypoints)
+    if const is not None:
+        proj = proj + const
+    proj = proj.reshape(-1, 2)  # (u − u0, v − v0) at scale 1
     offset = z.mean(axis=0) - scale * proj.mean(axis=0)
     pred = offset + scale * proj
     return offset, pred
@@ -302,7 +344,10 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
     Raises:
         FitError: keypoints no library mix reproduces at a positive image scale.
     """
-    M, Mc, z, b, rho = _centred(slots, uv, view)
+    if view.distance is not None:
+        raise FitError("the paper's solve is orthographic: use a Gaussian-prior method for a "
+                       "camera distance")
+    M, _, Mc, _, z, b, rho = _centred(slots, uv, view)
     rows = Mc / basis.size
     G = _solve_working_set(basis, rows, b, warm_support, slots, view)
     total = G.sum()
@@ -333,13 +378,41 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         prior_weight: λ.
         mixture: a mixture prior, one Gaussian (the library's covariance) around each template's
             mean, combined by their posterior weights (``"mixture"`` method).
+
+    A pinhole view (``view.distance``) is aimed at the car's centre and solved by fixed-point
+    iteration: freeze each keypoint's perspective factor and the aim at the current shape, solve,
+    repeat (``PERSPECTIVE_ITERATIONS``); the solution's ``view`` carries the final aim.
     """
-    M, Mc, z, b, rho = _centred(slots, uv, view)
+    from dataclasses import replace
+
     q = model.basis.shape[1]
     mk = model.mean.reshape(-1, 3)[point_indices].ravel()
     Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
+    shape = model.mean
+    for _ in range(1 if view.distance is None else PERSPECTIVE_ITERATIONS):
+        if view.distance is not None:
+            view = replace(view, aim=car_centre(shape))
+        sol = _solve_gauss_linear(model, mk, Bk, point_indices, slots, uv, view,
+                                  shape.reshape(-1, 3)[point_indices], prior_weight, mixture)
+        shape = sol.shape
+    sol.view = view
+    return sol
+
+
+def car_centre(shape: np.ndarray) -> tuple[float, float, float]:
+    """The centre of a car's bounding box (both halves: x = 0), the point a photo is aimed at."""
+    points = np.asarray(shape).reshape(-1, 3)
+    return (0.0, float(points[:, 1].min() + points[:, 1].max()) / 2,
+            float(points[:, 2].min() + points[:, 2].max()) / 2)
+
+
+def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point_indices: np.ndarray,
+                        slots: list[KeypointSlot], uv: np.ndarray, view: View, guess: np.ndarray,
+                        prior_weight: float, mixture: bool) -> MixSolution:
+    """:func:`solve_gauss` with the camera linearised at ``guess`` (35, 3)."""
+    M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, guess)
     AB = (Mc @ Bk) / model.size
-    am = (Mc @ mk) / model.size
+    am = (Mc @ mk + cc) / model.size
     if mixture and model.group_means is not None:
         # One Gaussian per template centre, shared covariance; the posterior mean of the mixture.
         deltas, gs, _, nle = _map_coefficients(am + model.group_means @ AB.T, AB, b, prior_weight)
@@ -359,7 +432,7 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
                        "(check the view angle and which side each keypoint name is on)")
     shape = model.mean + model.basis @ a
     scale = g * rho / model.size
-    offset, pred = _image_fit(M, shape.reshape(-1, 3)[point_indices], z, scale)
+    offset, pred = _image_fit(M, shape.reshape(-1, 3)[point_indices], z, scale, const)
     rvec = np.concatenate([((pred - z) / rho).ravel(), prior_part])
     H = None
     if model.to_weights is not None:
