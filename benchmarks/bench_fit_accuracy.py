@@ -200,7 +200,10 @@ def main(argv=None) -> int:
              ("gauss", None, OFFSET_DEG, True, False)]
     if args.elevation:
         # A photo's elevation is rarely known: start the refinement level, as `carbody reconstruct` does.
-        cases += [("gauss", None, OFFSET_DEG, True, True, True), ("mixture", None, OFFSET_DEG, True, True, True)]
+        cases += [("gauss", None, OFFSET_DEG, True, True, True), ("mixture", None, OFFSET_DEG, True, True, True),
+                  # does looking for a pinhole camera cost anything on an orthographic image?
+                  ("mixture", None, 0.0, True, True, False, "auto"),
+                  ("mixture", None, OFFSET_DEG, True, True, True, "auto")]
     if args.distance is not None:
         # A pinhole photo: the orthographic fit against one told the distance and one finding it.
         cases = [("mixture", None, 0.0, False, True), ("mixture", None, 0.0, False, True, False, "told"),
