@@ -222,3 +222,5 @@ def test_photo_from_a_few_metres_needs_the_pinhole_camera(library, topology):
         fit_wireframe(kps, 30, library, method="paper", camera_distance_mm=6000.0)
     with pytest.raises(Exception, match="inside or at the car"):
         fit_wireframe(kps, 30, library, camera_distance_mm=500.0)
+    with pytest.raises(Exception, match="view refinement"):
+        fit_wireframe(kps, 30, library, camera_distance_mm="auto", refine=False)

@@ -154,7 +154,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             ``"paper"`` (the paper's method as published).
         camera_distance_mm: None for SPEC's orthographic camera; a number for a pinhole camera
             that far from the car's centre (a photo taken from a few metres shows nearer parts
-            larger); ``"auto"`` to refine the distance with the view (Gaussian-prior methods).
+            larger; without ``wheelbase_mm`` it is read at the library's mean wheelbase);
+            ``"auto"`` to refine the distance with the view. Gaussian-prior methods only.
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -193,6 +194,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
     free = DEFAULT_FREE
     if camera_distance_mm is not None:
+        if camera_distance_mm == "auto" and not refine:
+            raise FitError("camera distance 'auto' is found by the view refinement: do not turn it off")
         view = _pinhole(view, camera_distance_mm, model, wheelbase_mm, library)
         if camera_distance_mm == "auto":
             free = DEFAULT_FREE + ("perspective",)
@@ -235,7 +238,7 @@ def _pinhole(view: View, camera_distance_mm: float | str, model, wheelbase_mm: f
         raise FitError("the paper's solve is orthographic: use --method mixture or gauss with a "
                        "camera distance")
     points = model.mean.reshape(-1, 3)
-    aim = car_centre(model.mean)
+    aim = car_centre(model.mean)  # the solve moves it onto the fitted car
     if camera_distance_mm == "auto":
         distance = AUTO_START_WHEELBASES * PERSPECTIVE_LENGTH
     else:
