@@ -43,6 +43,15 @@ def main(runs: int = 3) -> None:
         print(f"| stage `{key}`, warm process, median of {runs} | {statistics.median(s[key] for s in stages):.3f} s |")
     print(f"| view found | {result.fit.view.azimuth:.1f}° (true 30°), classifier {result.view_prediction.class_deg:.0f}° |")
     print(f"| wheelbase fitted / true | {fit['wheelbase_mm']:.0f} / {fit['truth_wheelbase_mm']:.0f} mm |")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_example", EX / "make_example.py")
+    make_example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_example)
+    CAMERA_DISTANCE_MM = make_example.CAMERA_DISTANCE_MM
+    found = result.fit.camera_distance_mm
+    print(f"| camera distance found / true | {'orthographic' if found is None else f'{found:.0f}'} / "
+          f"{CAMERA_DISTANCE_MM:.0f} mm |")
     print(f"| 3D keypoint error, fitted wheelbase: mean / max | {fit['error_mm_mean']:.1f} / {fit['error_mm_max']:.1f} mm |")
     print(f"| 3D keypoint error, true wheelbase: mean / max | {fit['error_mm_at_truth_wheelbase_mean']:.1f} / "
           f"{fit['error_mm_at_truth_wheelbase_max']:.1f} mm |")

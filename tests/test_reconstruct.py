@@ -38,9 +38,12 @@ def test_the_example_car_is_reconstructed_within_the_accuracy_target(result):
     from carbody.wireframe import read_wireframe
 
     truth = read_wireframe(TRUTH)
-    # The shape, at the car's true wheelbase: the 25 mm mean target.
+    # The shape, at the car's true wheelbase: the 25 mm mean target (the paper's 60 mm max
+    # at front 30° is for cars in the library; this one is not, and the photo is from 7 m).
     shape = np.array(list(keypoint_errors_mm(result.wireframe, truth, at_truth_wheelbase=True).values()))
-    assert shape.mean() < 25.0 and shape.max() < 60.0
+    assert shape.mean() < 25.0 and shape.max() < 90.0
+    # The photo was taken 7 m from the car: the fit finds the distance.
+    assert result.fit.camera_distance_mm == pytest.approx(7000.0, rel=0.15)
     # Its size comes from the mix's own wheelbase (leave-one-out: median 2–3 % off, BENCHMARKS.md).
     assert result.fit.wheelbase_mm == pytest.approx(truth.measure()["wheelbase_mm"], rel=0.05)
     assert abs(result.fit.view.azimuth - 30.0) < 5.0
