@@ -121,6 +121,8 @@ class Reconstruction:
             f"car: {self.name}",
             f"view: {view['azimuth_deg']:.1f} deg azimuth, {view['elevation_deg']:.1f} deg elevation "
             f"({view['source']}{', classifier said %.0f deg' % view['classifier']['class_deg'] if 'classifier' in view else ''})",
+            "camera: " + ("orthographic (far away)" if view["camera_distance_mm"] is None
+                          else f"{view['camera_distance_mm']:.0f} mm from the car's centre"),
             f"keypoints: {fit['keypoints_annotated']}, reprojection residual mean "
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm",
