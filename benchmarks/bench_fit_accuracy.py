@@ -221,6 +221,11 @@ def main(argv=None) -> int:
           f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}, {NOISE_PX:g} px noise on a {IMAGE_WIDTH} px wide image "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
+    found = [r for r in rows if r.get("camera") == "auto" and args.distance is not None]
+    if found:
+        d = np.array([np.inf if r["refined_distance_mm"] is None else r["refined_distance_mm"] for r in found])
+        print(f"\nCamera distance found by the fit: median {np.median(d):.0f} mm for {args.distance:g} mm; "
+              f"within 10 % in {int(np.sum(np.abs(d / args.distance - 1) < 0.1))} of {len(d)} cases.")
     print("\nWheelbase the fit estimates when none is given (the mix's own), error vs the truth, view known:\n")
     print("| method | mean abs. | median abs. | max abs. |")
     print("|---|---|---|---|")
