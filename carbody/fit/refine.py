@@ -1,8 +1,9 @@
 """Continuous view refinement around the given (classified) angle.
 
 The solve gives, at any view, the best library mix and its residual. The view is refined over
-azimuth and elevation (roll too on request): a coarse azimuth scan around the given angle (the objective is not
-convex far from the optimum), then a continuous search, the mix re-solved at every step. The
+azimuth and elevation (roll, and a pinhole camera's distance, on request): a coarse scan of
+azimuths × elevations around the given view (the objective is not convex far from the optimum),
+then a continuous search, the mix re-solved at every step. The
 objective is the solve's evidence (−log marginal likelihood of the view, the shape integrated
 out) when it has one (the Gaussian-prior methods; Nelder–Mead), else its residual (the paper's
 solve; bounded Gauss–Newton, trust-region reflective least squares). In an orthographic image

@@ -21,8 +21,13 @@ unknown scale s and offset t. Three methods:
   library mean, the components weighted by their posterior. It lets the visible part of the car
   pick which template the invisible part resembles (front and rear views gain most). All
   centres share one SVD and their scale searches run side by side, so it costs about one
-  ``"gauss"`` solve; it is the best of the three on every case of the leave-one-out benchmark
-  (BENCHMARKS.md).
+  ``"gauss"`` solve; it has the lowest mean error of the three in every case of the
+  leave-one-out benchmark (BENCHMARKS.md).
+
+The camera is SPEC's orthographic one, or (Gaussian-prior methods) a pinhole camera at a given
+distance, aimed at the car's centre: the projection is then linear in the shape once each
+keypoint's perspective factor is frozen, so the solve is repeated with the factors of the
+previous round (:func:`camera_rows`, ``PERSPECTIVE_ITERATIONS``).
 """
 from __future__ import annotations
 
