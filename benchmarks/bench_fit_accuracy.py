@@ -208,7 +208,9 @@ def main(argv=None) -> int:
         # A pinhole photo: the orthographic fit against one told the distance and one finding it.
         cases = [("mixture", None, 0.0, False, True), ("mixture", None, 0.0, False, True, False, "told"),
                  ("mixture", None, 0.0, True, True), ("mixture", None, 0.0, True, True, False, "auto"),
-                 ("mixture", None, OFFSET_DEG, True, True, False, "auto")]
+                 ("mixture", None, OFFSET_DEG, True, True, False, "auto"),
+                 # as a photo comes: azimuth 10° off, elevation and distance unknown
+                 ("mixture", None, OFFSET_DEG, True, True, True, "auto")]
     if args.known_only:
         cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
