@@ -56,11 +56,11 @@ def test_shell_is_valid_and_open_only_at_the_bottom(file, topology):
     assert shell["free_length_mm"] == pytest.approx(2 * length, rel=1e-4)
     from scipy.spatial import cKDTree
 
-    from carbody.occ.checks import _edges_of
+    from carbody.occ.shapes import sub_shapes
 
     tree = cKDTree(dense)
     closed, _ = free_edge_loops(body.shape)
-    pts = np.concatenate([edge_points(e, 5) for w in closed for e in _edges_of(w)])
+    pts = np.concatenate([edge_points(e, 5) for w in closed for e in sub_shapes(w, "edge")])
     pts[:, 0] = np.abs(pts[:, 0])  # the right half's opening mirrored onto the left
     assert tree.query(pts)[0].max() < 1.0  # dense samples are < 1 mm apart
 

@@ -3,36 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def _edges_of(shape) -> list:
-    from OCP.TopAbs import TopAbs_EDGE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
-
-    out, ex = [], TopExp_Explorer(shape, TopAbs_EDGE)
-    while ex.More():
-        out.append(TopoDS.Edge_s(ex.Current()))
-        ex.Next()
-    return out
+from carbody.occ.shapes import sub_shapes
 
 
 def free_edge_loops(shell) -> tuple[list, list]:
     """(closed wires, open wires) made of the shell's free edges (edges of one face only)."""
     from OCP.ShapeAnalysis import ShapeAnalysis_FreeBounds
-    from OCP.TopAbs import TopAbs_WIRE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
 
     fb = ShapeAnalysis_FreeBounds(shell, False, False)
-
-    def wires(compound):
-        out, ex = [], TopExp_Explorer(compound, TopAbs_WIRE)
-        while ex.More():
-            out.append(TopoDS.Wire_s(ex.Current()))
-            ex.Next()
-        return out
-
-    return wires(fb.GetClosedWires()), wires(fb.GetOpenWires())
+    return sub_shapes(fb.GetClosedWires(), "wire"), sub_shapes(fb.GetOpenWires(), "wire")
 
 
 def edge_points(edge, n: int = 9) -> np.ndarray:
@@ -64,15 +43,9 @@ def shell_checks(shell) -> dict:
     from OCP.BRepCheck import BRepCheck_Analyzer
     from OCP.GProp import GProp_GProps
     from OCP.BRepGProp import BRepGProp
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-
-    n_faces, ex = 0, TopExp_Explorer(shell, TopAbs_FACE)
-    while ex.More():
-        n_faces += 1
-        ex.Next()
+    n_faces = len(sub_shapes(shell, "face"))
     closed, open_ = free_edge_loops(shell)
-    free_edges = [e for w in closed + open_ for e in _edges_of(w)]
+    free_edges = [e for w in closed + open_ for e in sub_shapes(w, "edge")]
     length = 0.0
     for e in free_edges:
         props = GProp_GProps()

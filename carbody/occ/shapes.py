@@ -8,6 +8,21 @@ from __future__ import annotations
 import numpy as np
 
 
+def sub_shapes(shape, kind: str) -> list:
+    """The sub-shapes of one kind ("face", "edge", "wire", "shell"), downcast, in explorer order."""
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_WIRE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    enum, cast = {"face": (TopAbs_FACE, TopoDS.Face_s), "edge": (TopAbs_EDGE, TopoDS.Edge_s),
+                  "wire": (TopAbs_WIRE, TopoDS.Wire_s), "shell": (TopAbs_SHELL, TopoDS.Shell_s)}[kind]
+    out, explorer = [], TopExp_Explorer(shape, enum)
+    while explorer.More():
+        out.append(cast(explorer.Current()))
+        explorer.Next()
+    return out
+
+
 def curves_compound(curves: list[tuple[str, np.ndarray]]):
     """A TopoDS_Compound of Bezier edges, one per (name, (n, 3) poles mm)."""
     from OCP.BRep import BRep_Builder

@@ -164,8 +164,8 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
     from OCP.StepShape import StepShape_EdgeCurve, StepShape_GeometricCurveSet
     from OCP.StepToGeom import StepToGeom
     from OCP.TColStd import TColStd_SequenceOfAsciiString
-    from OCP.TopAbs import TopAbs_EDGE
-    from OCP.TopExp import TopExp_Explorer
+
+    from carbody.occ.shapes import sub_shapes
 
     path = Path(path)
     if not path.is_file():
@@ -209,11 +209,7 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
             if geom is None:
                 raise TemplateError(f"{path}: curve {name!r} has geometry OCCT cannot read")
             curves.append(_geom_curve(geom, name, reversed_))
-    n_edges = 0
-    explorer = TopExp_Explorer(reader.OneShape(), TopAbs_EDGE)
-    while explorer.More():
-        n_edges += 1
-        explorer.Next()
+    n_edges = len(sub_shapes(reader.OneShape(), "edge"))
     curves += [NamedCurve("", np.zeros((0, 3)))] * max(0, n_edges - len(curves))
     return product, curves
 

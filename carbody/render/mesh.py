@@ -51,16 +51,12 @@ def named_faces(shape_or_faces: Any) -> list[tuple[str, Any]]:
     mirrored half, with names carried over where the face is the same); or an iterable of
     shapes or (name, shape) pairs.
     """
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS, TopoDS_Shape
+    from OCP.TopoDS import TopoDS_Shape
+
+    from carbody.occ.shapes import sub_shapes
 
     def faces_of(shape) -> list:
-        out, ex = [], TopExp_Explorer(shape, TopAbs_FACE)
-        while ex.More():
-            out.append(TopoDS.Face_s(ex.Current()))
-            ex.Next()
-        return out
+        return sub_shapes(shape, "face")
 
     def as_shape(obj):
         if isinstance(obj, TopoDS_Shape):
