@@ -109,10 +109,3 @@ def test_fit_with_a_camera_distance_reports_it(photo):
     # The test photo is orthographic: "auto" finds a camera far away.
     assert rep["camera_distance_mm"] is None or rep["camera_distance_mm"] > 30_000
     assert rep["residual_px_mean"] < 3
-
-
-def test_cli_method_choices_are_the_solver_methods():
-    from carbody.fit.cli import METHOD_CHOICES
-    from carbody.fit.solve import METHODS
-
-    assert METHOD_CHOICES == METHODS

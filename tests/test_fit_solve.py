@@ -20,6 +20,12 @@ def _original(library, t):
     return int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
 
 
+def _left_out(library, template):
+    """(template index, the library without it, its normalised (280, 3) points)."""
+    t = library.template_names.index(template)
+    return t, library.without(template), library.points(_original(library, t))
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_active_set_nnls_matches_scipy(seed):
     from scipy.optimize import nnls
@@ -66,9 +72,7 @@ def test_working_set_solve_equals_the_full_solve(library, topology, monkeypatch)
 @pytest.mark.parametrize("template", ["Toyota Camry XV70", "Hyundai Santa Fe"])
 def test_leave_one_out_error_at_three_views(library, topology, template):
     """Leave the car out, annotate visible keypoints with 1 px noise, fit with the view known."""
-    t = library.template_names.index(template)
-    loo = library.without(template)
-    truth = library.points(_original(library, t))
+    t, loo, truth = _left_out(library, template)
     wb = library.template_wheelbase_mm[t]
     kp = topology.keypoint_point_indices
     errors = {}
@@ -86,9 +90,7 @@ def test_leave_one_out_error_at_three_views(library, topology, template):
 
 def test_refinement_wins_back_a_wrong_angle(library, topology):
     template = "Volkswagen Golf Mk7"
-    t = library.template_names.index(template)
-    loo = library.without(template)
-    truth = library.points(_original(library, t))
+    _, loo, truth = _left_out(library, template)
     slots, uv = _observe(truth, View(60), noise=1.0)
     kps = {s.name: p for s, p in zip(slots, uv)}
     kp = topology.keypoint_point_indices
@@ -130,9 +132,7 @@ def test_fit_result_reports(library):
 
 def test_mixture_prior_fits_a_left_out_car(library, topology):
     template = "Toyota Camry XV70"
-    t = library.template_names.index(template)
-    loo = library.without(template)
-    truth = library.points(_original(library, t))
+    t, loo, truth = _left_out(library, template)
     slots, uv = _observe(truth, View(30), noise=1.0)
     res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, 30, loo, wheelbase_mm=1000.0,
                         method="mixture", refine=False)
@@ -141,21 +141,13 @@ def test_mixture_prior_fits_a_left_out_car(library, topology):
     assert err.max() < 60 and res.solution.residual_px.mean() < 3
 
 
-def _wheelbase(points, topology):
-    from carbody.wireframe import wheel_centre
-
-    return np.linalg.norm(wheel_centre(points, topology, "rear") - wheel_centre(points, topology, "front"))
-
-
 def test_deformation_moves_an_unlike_car_onto_its_marks(library, topology):
     """A car no template resembles (the pickup, left out): the mix misses its marks by ~5 px;
     the deformation moves it closer to them (a stiff field: part of the miss stays), keeps the
     wheel centres, the symmetry plane and the curve joins, and the marked keypoints get closer
     in 3D."""
     template = "Ford F-150 SuperCrew 5.5 ft"
-    t = library.template_names.index(template)
-    loo = library.without(template)
-    truth = library.points(_original(library, t))
+    _, loo, truth = _left_out(library, template)
     slots, uv = _observe(truth, View(30), scale=0.5, noise=1.0)
     kps = {s.name: p for s, p in zip(slots, uv)}
     mix = fit_wireframe(kps, 30, loo, wheelbase_mm=1000.0, refine=False, deform=False)
@@ -169,7 +161,7 @@ def test_deformation_moves_an_unlike_car_onto_its_marks(library, topology):
                           for r in (mix, moved))
     assert err_moved < err_mix
     pts = moved.wireframe.control_points
-    assert _wheelbase(pts, topology) == pytest.approx(1000.0, abs=1e-6)
+    assert moved.wireframe.measure()["wheelbase_mm"] == pytest.approx(1000.0, abs=1e-6)
     on_plane = [i for j in topology.symmetry_junctions for i in topology.junction_groups()[j]]
     assert len(on_plane) > 10 and np.abs(pts[on_plane, 0]).max() < 1e-6
     # Curves that met still meet: every junction's control points stay together.

@@ -5,9 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-#: ``carbody.fit.solve.METHODS``, default first; spelled out so ``carbody --help`` imports no
-#: numpy (a test checks the two agree).
-METHOD_CHOICES = ("mixture", "gauss", "paper")
+from carbody.fit.solve import METHODS
 
 DISTANCE_HELP = ("how far the camera stood from the car's centre, mm (a photo from a few metres "
                  "shows nearer parts larger), 'auto' to find it, or 'orthographic' for a distant "
@@ -49,7 +47,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="real wheelbase, mm (default: the fitted mix of the templates' own)")
     p.add_argument("--exclude-template", action="append", default=[], metavar="NAME",
                    help="drop a template and its expansions from the library (repeatable)")
-    p.add_argument("--method", choices=METHOD_CHOICES, default=METHOD_CHOICES[0],
+    p.add_argument("--method", choices=METHODS, default=METHODS[0],
                    help="mixture: Gaussian shape prior around each template (default); gauss: one "
                         "Gaussian around the library mean; paper: the paper's plain ΣH=1, 0≤H≤1")
     p.add_argument("--distance", default="orthographic", metavar="MM|auto|orthographic",

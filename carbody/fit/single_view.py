@@ -210,7 +210,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     if sol.shape is None:
         sol.shape = library.S[:, sol.support] @ sol.H[sol.support]
     moved = 0.0
-    if deform if deform is not None else method != "paper":
+    if (method != "paper") if deform is None else deform:
         before = sol.shape
         sol.shape = prepared_field(library).fit_to_keypoints(before, idx, slots, uv, refined,
                                                               sol.scale, sol.offset)
