@@ -43,12 +43,12 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
 
     view = View(azimuth, elevation)
     both = np.concatenate([truth, truth * [-1.0, 1.0, 1.0]])
+    centre = (both.min(axis=0) + both.max(axis=0)) / 2
 
     def camera(points: np.ndarray) -> np.ndarray:
         """Image coordinates at scale 1: orthographic, or pinhole (nearer points larger)."""
         if distance is None:
             return project(points, view)
-        centre = (both.min(axis=0) + both.max(axis=0)) / 2
         toward = (points - centre) @ camera_direction(view)
         c = project(centre, view)
         return c + (project(points, view) - c) * (distance / (distance - toward))[:, None]
@@ -58,7 +58,9 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
     height = int(np.ceil(np.ptp(p[:, 1]) * scale + 2 * (IMAGE_WIDTH - CAR_SPAN) / 2))
     offset = (IMAGE_WIDTH / 2 - scale * (p[:, 0].min() + p[:, 0].max()) / 2,
               height / 2 - scale * (p[:, 1].min() + p[:, 1].max()) / 2)
-    slots = visible_slots(view, truth)
+    # What the camera sees: a close one sees less of the faces turned away.
+    eye = view if distance is None else View(azimuth, elevation, 0.0, distance, tuple(centre))
+    slots = visible_slots(eye, truth)
     pts = np.array([truth[s.point_index] * s.sign for s in slots])
     uv = offset + scale * camera(pts) + rng.normal(0.0, NOISE_PX, (len(slots), 2))
     return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, (IMAGE_WIDTH, height)

@@ -53,6 +53,14 @@ class View:
         if self.distance is not None and not (np.isfinite(self.distance) and self.distance > 0):
             raise AngleError(f"camera distance {self.distance!r} is not a positive number")
 
+    def scaled(self, factor: float) -> "View":
+        """The same camera for the car scaled by ``factor`` about the origin (a pinhole view's
+        distance and aim scale with it; the image does not change)."""
+        if self.distance is None:
+            return self
+        return View(self.azimuth, self.elevation, self.roll, self.distance * factor,
+                    tuple(float(a) * factor for a in self.aim))
+
     def as_dict(self) -> dict[str, float]:
         return {"azimuth_deg": float(self.azimuth), "elevation_deg": float(self.elevation),
                 "roll_deg": float(self.roll)}

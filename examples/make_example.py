@@ -32,6 +32,7 @@ SIZE = (1000, 640)
 def main() -> None:
     from carbody.fit import View, visible_keypoints
     from carbody.fit.keypoints_io import keypoint_slots, write_keypoints
+    from carbody.fit.solve import car_centre
     from carbody.render.mesh import tessellate
     from carbody.render.scene import Look, Scene, save_png
     from carbody.surface import build_body
@@ -51,7 +52,8 @@ def main() -> None:
     save_png(image, HERE / "car.png")
 
     slots = keypoint_slots()
-    names = visible_keypoints(View(VIEW_DEG, ELEVATION_DEG), truth.control_points)
+    camera = View(VIEW_DEG, ELEVATION_DEG, 0.0, CAMERA_DISTANCE_MM, car_centre(truth.control_points))
+    names = visible_keypoints(camera, truth.control_points)
     rng = np.random.default_rng(7)
     points = {}
     for name in names:

@@ -67,6 +67,12 @@ def test_fit_writes_step_overlay_and_report(photo):
 def test_visible_keypoints_command():
     proc = run_cli("visible-keypoints", "--view", "90", check=True)
     assert "rear_arch_top" in proc.stdout and "_right" not in proc.stdout
+    ortho = run_cli("visible-keypoints", "--view", "60", check=True).stdout
+    close = run_cli("visible-keypoints", "--view", "60", "--distance", "4000", check=True).stdout
+    assert "front_top_corner_right" in ortho and "front_top_corner_right" not in close
+    assert "4000 mm away" in close
+    inside = run_cli("visible-keypoints", "--view", "60", "--distance", "300")
+    assert inside.returncode == 2 and "inside the car" in inside.stderr
 
 
 def _bad(photo, tmp_path, keypoints=None, view="30", image=None, extra=()):
@@ -97,7 +103,6 @@ def test_bad_inputs_exit_2_with_one_line_and_no_output(photo, tmp_path):
     assert "neither a number" in _bad(photo, tmp_path, extra=("--distance", "far"))
     assert "positive" in _bad(photo, tmp_path, extra=("--distance", "-3"))
     assert "inside or at the car" in _bad(photo, tmp_path, extra=("--distance", "900"))
-    assert "orthographic" in _bad(photo, tmp_path, extra=("--distance", "6000", "--method", "paper"))
 
 
 def test_fit_with_a_camera_distance_reports_it(photo):

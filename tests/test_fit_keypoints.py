@@ -104,6 +104,23 @@ def test_three_quarter_views_see_a_paper_sized_set():
     assert sorted(_swap(n) for n in right) == sorted(front)
 
 
+def test_a_close_camera_sees_less_of_the_faces_turned_away():
+    """From 1.5 wheelbases (≈ 4 m) at front 60° the far front corner lies behind the nose's face,
+    which an orthographic camera at 60° still sees; from far away the two agree."""
+    from carbody.camera import AngleError
+    from carbody.fit.solve import car_centre
+    from carbody.library import load_library
+
+    mean = load_library().S.mean(axis=1)
+    ortho = set(visible_keypoints(View(60)))
+    close = set(visible_keypoints(View(60, 0, 0, 1500.0, car_centre(mean))))
+    far = set(visible_keypoints(View(60, 0, 0, 1e6, car_centre(mean))))
+    assert "front_top_corner_right" in ortho - close
+    assert close < ortho and far == ortho
+    with pytest.raises(AngleError, match="inside the car"):
+        visible_keypoints(View(60, 0, 0, 100.0, car_centre(mean)))
+
+
 def _swap(name):
     from carbody.topology import load_topology
 

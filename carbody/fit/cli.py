@@ -69,6 +69,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     v.add_argument("--view", required=True, help="view azimuth, degrees 0–360")
     v.add_argument("--elevation", type=float, default=0.0, help="camera elevation, degrees")
     v.add_argument("--template", default=None, help="use this template's geometry instead of the mean")
+    v.add_argument("--distance", default="orthographic", metavar="MM|orthographic",
+                   help="a photo's camera distance from the car's centre, mm (a close camera sees "
+                        "less of the faces turned away); default SPEC's orthographic camera")
     v.set_defaults(func=run_visible)
 
 
@@ -145,21 +148,35 @@ def _match_template(library, name: str) -> str:
 
 
 def run_visible(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from carbody.camera import View, check_azimuth
+    from carbody.errors import FitError
     from carbody.fit.keypoints_io import keypoint_slots
+    from carbody.fit.solve import car_centre
     from carbody.fit.visibility import visible_keypoints
+    from carbody.library import load_library
+    from carbody.tolerances import NORMALISED_WHEELBASE
     from carbody.topology import load_topology
 
-    view = View(check_azimuth(args.view), args.elevation)
-    cp = None
+    azimuth = check_azimuth(args.view)
+    distance = parse_distance(args.distance)
+    if distance == "auto":
+        raise FitError("visible-keypoints needs a camera distance in mm or 'orthographic', not 'auto'")
     if args.template:
         from carbody.templates import load_template
 
         cp = load_template(args.template).control_points
+    else:  # the library's mean car at the templates' mean wheelbase, mm
+        library = load_library()
+        cp = (library.S.mean(axis=1).reshape(-1, 3)
+              * float(np.mean(library.template_wheelbase_mm)) / NORMALISED_WHEELBASE)
+    view = View(azimuth, args.elevation, 0.0, distance, car_centre(cp) if distance else (0.0, 0.0, 0.0))
     names = visible_keypoints(view, cp)
     topo = load_topology()
     slots = keypoint_slots(topo)
-    print(f"{len(names)} keypoints visible at view {view.azimuth:g}° (elevation {view.elevation:g}°):")
+    camera = "" if distance is None else f", camera {distance:g} mm away"
+    print(f"{len(names)} keypoints visible at view {view.azimuth:g}° (elevation {view.elevation:g}°{camera}):")
     for n in names:
         k = topo.keypoints[slots[n].keypoint_id - 1]
         print(f"  {k.id:2d}  {n:30s} {k.description}")

@@ -42,7 +42,7 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
     from carbody.fit.visibility import visible_keypoints
 
     res = result.residuals_px()
-    visible = visible_keypoints(result.view, result.wireframe.control_points)
+    visible = visible_keypoints(result.view.scaled(result.mm_per_unit), result.wireframe.control_points)
     report = {
         "method": result.method,
         "given_view": result.given_view.as_dict(),

@@ -155,7 +155,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         camera_distance_mm: None for SPEC's orthographic camera; a number for a pinhole camera
             that far from the car's centre (a photo taken from a few metres shows nearer parts
             larger; without ``wheelbase_mm`` it is read at the library's mean wheelbase);
-            ``"auto"`` to refine the distance with the view. Gaussian-prior methods only.
+            ``"auto"`` to refine the distance with the view.
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -185,7 +185,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         state = {"support": None}
 
         def solve_at(v: View) -> MixSolution:
-            sol = solve_simplex(model, slots, uv, v, warm_support=state["support"])
+            sol = solve_simplex(model, slots, uv, v, library.S, warm_support=state["support"])
             state["support"] = sol.support
             return sol
     else:
@@ -196,7 +196,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     if camera_distance_mm is not None:
         if camera_distance_mm == "auto" and not refine:
             raise FitError("camera distance 'auto' is found by the view refinement: do not turn it off")
-        view = _pinhole(view, camera_distance_mm, model, wheelbase_mm, library)
+        view = _pinhole(view, camera_distance_mm, wheelbase_mm, library)
         if camera_distance_mm == "auto":
             free = DEFAULT_FREE + ("perspective",)
     if refine:
@@ -231,14 +231,12 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 AUTO_START_WHEELBASES = 2.5
 
 
-def _pinhole(view: View, camera_distance_mm: float | str, model, wheelbase_mm: float | None,
+def _pinhole(view: View, camera_distance_mm: float | str, wheelbase_mm: float | None,
              library: Library) -> View:
     """The given view as a pinhole camera aimed at the library mean's centre (normalised units)."""
-    if not isinstance(model, ShapeModel):
-        raise FitError("the paper's solve is orthographic: use --method mixture or gauss with a "
-                       "camera distance")
-    points = model.mean.reshape(-1, 3)
-    aim = car_centre(model.mean)  # the solve moves it onto the fitted car
+    mean = library.S.mean(axis=1, dtype=np.float64)
+    points = mean.reshape(-1, 3)
+    aim = car_centre(mean)  # the solve moves it onto the fitted car
     if camera_distance_mm == "auto":
         distance = AUTO_START_WHEELBASES * PERSPECTIVE_LENGTH
     else:

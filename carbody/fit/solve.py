@@ -24,8 +24,8 @@ unknown scale s and offset t. Three methods:
   ``"gauss"`` solve; it has the lowest mean error of the three in every case of the
   leave-one-out benchmark (BENCHMARKS.md).
 
-The camera is SPEC's orthographic one, or (Gaussian-prior methods) a pinhole camera at a given
-distance, aimed at the car's centre: the projection is then linear in the shape once each
+The camera is SPEC's orthographic one, or a pinhole camera at a given distance, aimed at the
+car's centre: the projection is then linear in the shape once each
 keypoint's perspective factor is frozen, so the solve is repeated with the factors of the
 previous round (:func:`camera_rows`, ``PERSPECTIVE_ITERATIONS``).
 """
@@ -342,33 +342,39 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
     Args:
         basis: the library's keypoint rows.
         slots: the k annotated keypoints; uv: (k, 2) float, their pixels.
-        view: the camera.
-        shapes: (840, N) float, the library's S, to return the new model S·H (else only its
-            keypoints are filled in ``shape``).
+        view: the camera. A pinhole view is solved as in :func:`solve_gauss`, by rounds that
+            freeze the perspective factors at the previous mix (and, given ``shapes``, aim at
+            its centre).
+        shapes: (840, N) float, the library's S, to return the new model S·H (else ``shape``
+            is None).
         warm_support: models to start the active set from (a previous solution's support).
     Raises:
         FitError: keypoints no library mix reproduces at a positive image scale.
     """
-    if view.distance is not None:
-        raise FitError("the paper's solve is orthographic: use a Gaussian-prior method for a "
-                       "camera distance")
-    M, _, Mc, _, z, b, rho = _centred(slots, uv, view)
-    rows = Mc / basis.size
-    G = _solve_working_set(basis, rows, b, warm_support, slots, view)
-    total = G.sum()
-    if not total > 0:
-        raise FitError("no library mix reproduces these keypoints at a positive image scale "
-                       "(check the view angle and which side each keypoint name is on)")
-    H = G / total
-    support = np.flatnonzero(H > 0)
-    kp = np.tensordot(basis.X[:, :, support].astype(np.float64), H[support], axes=([2], [0]))
+    from dataclasses import replace
+
+    kp = basis.X.mean(axis=2, dtype=np.float64)  # a pinhole's first linearisation: the mean car
+    for round_ in range(1 if view.distance is None else PERSPECTIVE_ITERATIONS):
+        if round_ and shapes is not None:
+            view = replace(view, aim=car_centre(shapes[:, support] @ H[support]))
+        M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, kp)
+        G = _solve_working_set(basis, Mc / basis.size, cc / basis.size, b, warm_support, slots, M)
+        total = G.sum()
+        if not total > 0:
+            raise FitError("no library mix reproduces these keypoints at a positive image scale "
+                           "(check the view angle and which side each keypoint name is on)")
+        H = G / total
+        support = warm_support = np.flatnonzero(H > 0)
+        kp = np.tensordot(basis.X[:, :, support].astype(np.float64), H[support], axes=([2], [0]))
     scale = total * rho / basis.size
-    offset, pred = _image_fit(M, kp, z, scale)
+    if view.distance is not None:  # the residual of the camera itself, not of its last linearisation
+        M, const = camera_rows(slots, view, kp)
+    offset, pred = _image_fit(M, kp, z, scale, const)
     rvec = ((pred - z) / rho).ravel()
     shape = shapes[:, support] @ H[support] if shapes is not None else None
     return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
-                       residual_vector=rvec, support=support)
+                       residual_vector=rvec, support=support, view=view)
 
 
 def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[KeypointSlot],
@@ -505,37 +511,40 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     return a, g, c, nle
 
 
-def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, b: np.ndarray,
-                       warm: np.ndarray | None, slots: list[KeypointSlot], view: View) -> np.ndarray:
-    """NNLS over all models of ``basis`` with A = rows·X (X the (105, N) keypoint rows), A never
-    built whole for a large library.
+def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, const: np.ndarray, b: np.ndarray,
+                       warm: np.ndarray | None, slots: list[KeypointSlot], M: np.ndarray) -> np.ndarray:
+    """NNLS over all models of ``basis`` with A = rows·X + const·1ᵀ (X the (105, N) keypoint
+    rows), A never built whole for a large library.
 
     Args:
         rows: (2k, 105) float, the centred projection rows (divided by the basis size).
+        const: (2k,) float, the centred constant of a pinhole camera's rows (divided likewise;
+            zeros for an orthographic one): a model's image is rows·X_j + const, and with
+            G = s·H summing to s the constant enters every column.
         b: (2k,) float, the centred, scaled image keypoints.
+        M: (2k, 35, 3) float, the camera rows (:func:`camera_rows`).
     Returns:
         (N,) float, G ≥ 0.
     """
     n = basis.n_models
     flat = basis.X.reshape(-1, n)
     # Each image coordinate reads three coordinates of one keypoint: gather those, not all 105.
-    rot = view_rotation(view)
     kp = np.array([s.keypoint_id - 1 for s in slots])
-    sign = np.array([s.sign for s in slots])
-    coef = np.stack([rot[1] * sign, -rot[2] * sign], axis=1) / basis.size  # (k, 2, 3)
+    at = np.arange(len(slots))
+    coef = np.stack([M[0::2][at, kp], M[1::2][at, kp]], axis=1) / basis.size  # (k, 2, 3)
 
     def columns(idx: np.ndarray | None) -> np.ndarray:
         Xs = basis.X[kp] if idx is None else basis.X[:, :, idx][kp]
         A = np.einsum("kac,kcn->kan", coef, Xs, dtype=np.float64, optimize=False)
         A -= A.mean(axis=0)  # centring per image axis
-        return A.reshape(2 * len(kp), -1)
+        return A.reshape(2 * len(kp), -1) + const[:, None]
 
     if n <= FULL_SET_MAX:
         return nnls_active_set(columns(None), b, passive=warm)
 
     def gradient(r: np.ndarray) -> np.ndarray:
         """Aᵀ·r over every model: one pass over the (105, N) keypoint rows."""
-        return ((rows.T @ r).astype(flat.dtype) @ flat).astype(np.float64)
+        return ((rows.T @ r).astype(flat.dtype) @ flat).astype(np.float64) + const @ r
 
     g0 = gradient(-b)
     seed = np.argsort(g0)[:WORKING_SET_GROWTH]

@@ -5,12 +5,16 @@ has a positive component toward the camera, a grazing region counts as the silho
 nearer facing region covers it in the image. Regions are the topology's 13 closed loops on each
 half; their normals come from the loop polygon (Newell's method), made outward by pointing away
 from the body's centre line.
+
+For a pinhole view (``View.distance``) "toward the camera" is toward the camera's position, which
+differs from region to region: a photo from a few metres at front 60° no longer sees the nose's
+face, which an orthographic camera at 60° does, and it sees less of the roof from above.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from carbody.camera import View, camera_direction, view_rotation
+from carbody.camera import View, camera_direction, perspective_factors, project
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
 from carbody.topology import Topology, load_topology
 
@@ -64,8 +68,11 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
     """Names of the keypoints (both halves) the view can see, in id order, left before right.
 
     Args:
-        view: the camera.
-        control_points: (280, 3) float, the car (any unit); default the library's mean model.
+        view: the camera; a pinhole view's distance and aim are in the unit of ``control_points``.
+        control_points: (280, 3) float, the car (any unit); default the library's mean model
+            (normalised units).
+    Raises:
+        AngleError: a pinhole camera inside the car.
     """
     topo = topology or load_topology()
     if control_points is None:
@@ -73,10 +80,18 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
 
         control_points = load_library().S.mean(axis=1).reshape(-1, 3)
     cp = np.asarray(control_points, dtype=float)
+    perspective_factors(cp, view)  # refuses a camera inside the car
     d = camera_direction(view)
-    rot = view_rotation(view)
+    eye = None if view.distance is None else np.asarray(view.aim, dtype=float) + view.distance * d
     size = float(np.ptp(cp[:, 1]))
     centre_line = np.array([0.0, cp[:, 1].mean(), cp[:, 2].mean()])
+
+    def toward_camera(p: np.ndarray) -> np.ndarray:
+        """(3,) unit vector from point p toward the camera."""
+        if eye is None:
+            return d
+        v = eye - p
+        return v / np.linalg.norm(v)
 
     # Regions of both halves: outline (n, 3), outward normal, junction names.
     regions = []
@@ -89,8 +104,8 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
         for sign in (np.ones(3), np.array([-1.0, 1.0, 1.0])):
             regions.append((loop * sign, n * sign, junctions, sign[0] < 0))
 
-    facing = [r for r in regions if r[1] @ d > FACING_COS]
-    outlines = [((r[0] @ rot[1:].T), r) for r in facing]
+    facing = [r for r in regions if r[1] @ toward_camera(r[0].mean(axis=0)) > FACING_COS]
+    outlines = [(project(r[0], view), r) for r in facing]
     seen = []
     for slot in keypoint_slots(topo).values():
         p = cp[slot.point_index] * slot.sign
@@ -102,16 +117,17 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
 
         if not any(owns(r) for r in facing):
             continue
-        q = rot[1:] @ p
+        q = project(p, view)
+        ray = toward_camera(p)
         hidden = False
         for poly, r in outlines:
             if owns(r):
                 continue
             inside, dist = _inside(poly, q)
-            if not inside or dist < OCCLUSION_MARGIN * size:
+            if not inside or dist < OCCLUSION_MARGIN * size * _image_scale(view, p):
                 continue
-            # Depth of the region's plane along the ray through p toward the camera.
-            nd = r[1] @ d
+            # How far along the ray from p toward the camera it meets the region's plane.
+            nd = r[1] @ ray
             if abs(nd) < 1e-6:
                 continue
             t = r[1] @ (r[0].mean(axis=0) - p) / nd
@@ -121,6 +137,11 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
         if not hidden:
             seen.append(slot.name)
     return seen
+
+
+def _image_scale(view: View, p: np.ndarray) -> float:
+    """How much larger the camera shows lengths near p than an orthographic one (1 for it)."""
+    return float(perspective_factors(p, view))
 
 
 def _junction_of(slot: KeypointSlot, topo: Topology) -> str:
