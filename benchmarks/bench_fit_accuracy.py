@@ -6,12 +6,14 @@ geometry) by projection onto a 1000 px wide image (the car spans 900 px) plus N(
 fit, and measure the 3D error of the 35 keypoints in mm at the true wheelbase.
 
 Cases: the view known (no refinement), and the given angle off by +10° without and with the
-view refinement. Methods: ``paper`` (plain ΣH = 1, 0 ≤ H ≤ 1) and ``gauss`` (Gaussian shape
-prior, the default), each Gaussian-prior case with the photo-matching deformation (default) and,
-where marked "no deform", without it. ``--sweep`` also scans the default method's prior weight λ on the
-known-view case.
+view refinement. Methods: ``paper`` (plain ΣH = 1, 0 ≤ H ≤ 1), ``gauss`` (one Gaussian shape
+prior) and ``mixture`` (a Gaussian around each template, the default), the Gaussian-prior cases
+with the photo-matching deformation (default) and, where marked "no deform", without it.
+``--sweep`` also scans the default method's prior weight λ on the known-view case;
+``--elevation`` views from above; ``--distance`` photographs with a pinhole camera.
 
-Run: python benchmarks/bench_fit_accuracy.py [--quick] [--sweep] [--json out.json]
+Run: python benchmarks/bench_fit_accuracy.py [--quick] [--sweep] [--elevation DEG] [--distance MM]
+    [--known-only] [--json out.json]
 """
 from __future__ import annotations
 
@@ -187,7 +189,8 @@ def main(argv=None) -> int:
     ap.add_argument("--known-only", action="store_true", help="only the view-known cases")
     ap.add_argument("--distance", type=float, default=None,
                     help="photograph with a pinhole camera this far from the car's centre (mm) "
-                         "instead of SPEC's orthographic one; the fit still assumes orthographic")
+                         "instead of SPEC's orthographic one, and fit it as orthographic, told the "
+                         "distance, or finding it")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -209,6 +212,7 @@ def main(argv=None) -> int:
     if args.distance is not None:
         # A pinhole photo: the orthographic fit against one told the distance and one finding it.
         cases = [("mixture", None, 0.0, False, True), ("mixture", None, 0.0, False, True, False, "told"),
+                 ("paper", None, 0.0, False, False, False, "told"),
                  ("mixture", None, 0.0, True, True), ("mixture", None, 0.0, True, True, False, "auto"),
                  ("mixture", None, OFFSET_DEG, True, True, False, "auto"),
                  # as a photo comes: azimuth 10° off, elevation and distance unknown

@@ -109,13 +109,15 @@ def main(argv=None) -> int:
     print(f"Shape model build (once per library, PCA of S): {time.perf_counter() - t0:.2f} s")
 
     print("\n## Full fit with view refinement at 3528 models (given view 30°; median of 5)\n")
-    print("| method | s | refined azimuth |")
-    print("|---|---|---|")
+    print("| method | camera | s | refined azimuth |")
+    print("|---|---|---|---|")
     for method in ("gauss", "mixture", "paper"):
-        fit_wireframe(kps, 30, lib, method=method)  # prepares the library once
-        tt, res = median_time(lambda: fit_wireframe(kps, 30, lib, method=method), 5)
-        print(f"| {method} | {tt:.3f} | {res.view.azimuth:.1f}° |")
-
+        for camera in (None, "auto"):
+            fit_wireframe(kps, 30, lib, method=method)  # prepares the library once
+            tt, res = median_time(lambda: fit_wireframe(kps, 30, lib, method=method,
+                                                         camera_distance_mm=camera), 5)
+            label = "orthographic" if camera is None else "distance found (auto)"
+            print(f"| {method} | {label} | {tt:.3f} | {res.view.azimuth:.1f}° |")
     print("\n## Scaling (paper solve; finer expansion factors; keypoint rows only, float32)\n")
     print("| models | build s | solve ms (median of 3, cold start) | solve ms warm start | scipy nnls ms | residual ours / nnls |")
     print("|---|---|---|---|---|---|")

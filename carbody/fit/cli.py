@@ -50,8 +50,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", choices=METHODS, default=METHODS[0],
                    help="mixture: Gaussian shape prior around each template (default); gauss: one "
                         "Gaussian around the library mean; paper: the paper's plain ΣH=1, 0≤H≤1")
-    p.add_argument("--distance", default="orthographic", metavar="MM|auto|orthographic",
-                   help=DISTANCE_HELP + "; default orthographic")
+    p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
+                   help=DISTANCE_HELP + "; default auto")
     p.add_argument("--no-refine", action="store_true", help="keep the given view as it is")
     p.add_argument("--no-deform", action="store_true",
                    help="keep the library mix as it is (no smooth move onto the marked keypoints)")

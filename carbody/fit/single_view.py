@@ -148,14 +148,15 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             0 ≤ H ≤ 1); see :mod:`carbody.fit.solve`.
         prior_weight: λ of ``"gauss"`` and ``"mixture"``.
         refine: refine azimuth and elevation around ``view`` (roll stays as given; see
-            :mod:`carbody.fit.refine`).
+            :mod:`carbody.fit.refine`); off, the view stays as given (a camera distance
+            ``"auto"`` is still found).
         deform: move the mix onto the annotated keypoints with a smooth symmetric field
             (:mod:`carbody.fit.deform`); default on for ``"gauss"``/``"mixture"``, off for
             ``"paper"`` (the paper's method as published).
         camera_distance_mm: None for SPEC's orthographic camera; a number for a pinhole camera
             that far from the car's centre (a photo taken from a few metres shows nearer parts
             larger; without ``wheelbase_mm`` it is read at the library's mean wheelbase);
-            ``"auto"`` to refine the distance with the view.
+            ``"auto"`` to find the distance (with the view, when it is refined).
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -192,14 +193,12 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         def solve_at(v: View) -> MixSolution:
             return solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture")
 
-    free = DEFAULT_FREE
+    free = DEFAULT_FREE if refine else ()
     if camera_distance_mm is not None:
-        if camera_distance_mm == "auto" and not refine:
-            raise FitError("camera distance 'auto' is found by the view refinement: do not turn it off")
         view = _pinhole(view, camera_distance_mm, wheelbase_mm, library)
         if camera_distance_mm == "auto":
-            free = DEFAULT_FREE + ("perspective",)
-    if refine:
+            free += ("perspective",)
+    if free:
         refined, sol = refine_view(solve_at, view, free=free)
     else:
         refined, sol = view, solve_at(view)

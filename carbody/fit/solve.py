@@ -25,9 +25,8 @@ unknown scale s and offset t. Three methods:
   leave-one-out benchmark (BENCHMARKS.md).
 
 The camera is SPEC's orthographic one, or a pinhole camera at a given distance, aimed at the
-car's centre: the projection is then linear in the shape once each
-keypoint's perspective factor is frozen, so the solve is repeated with the factors of the
-previous round (:func:`camera_rows`, ``PERSPECTIVE_ITERATIONS``).
+car's centre: its projection is linearised at the previous round's shape and the solve repeated
+(Newton steps; :func:`camera_rows`, ``PERSPECTIVE_ITERATIONS``).
 """
 from __future__ import annotations
 
@@ -50,11 +49,15 @@ SHAPE_ENERGY = 0.99999
 #: Most principal components the shape model computes.
 MAX_COMPONENTS = 200
 
-#: Fixed-point rounds of a pinhole-camera solve (the perspective factors settle in 2–3).
-PERSPECTIVE_ITERATIONS = 3
+#: Newton rounds of a pinhole-camera solve (the first linearises at the library's mean car).
+PERSPECTIVE_ITERATIONS = 2
 
 #: Largest perspective factor a solve uses (a point 5× nearer than the aim's distance).
 MAX_PERSPECTIVE_FACTOR = 5.0
+
+#: Passes of the Gaussian-prior solve's scale search after its log grid; each evaluates 17 scales
+#: across the bracket and keeps the best's neighbours (8× narrower): 8⁻⁷ ≈ 5e-7 of the bracket.
+SCALE_PASSES = 7
 
 #: Fit methods, default first.
 METHODS = ("mixture", "gauss", "paper")
@@ -282,7 +285,7 @@ def projection_rows(slots: list[KeypointSlot], view: View) -> np.ndarray:
 def camera_rows(slots: list[KeypointSlot], view: View, keypoints: np.ndarray | None = None):
     """The camera as a linear map of the 35 keypoints: image coordinates at scale 1 are
     M·X + const (exact for an orthographic view; a pinhole view is linearised at ``keypoints``,
-    (35, 3), whose perspective factors k it freezes).
+    (35, 3): its first-order Taylor expansion there, so repeated solves are Newton steps).
 
     Returns:
         (M (2k, 35, 3) float, const (2k,) float).
@@ -291,16 +294,23 @@ def camera_rows(slots: list[KeypointSlot], view: View, keypoints: np.ndarray | N
     const = np.zeros(len(M))
     if view.distance is None:
         return M, const
-    from carbody.camera import perspective_factors
+    from carbody.camera import camera_direction, perspective_factors
 
     pts = np.array([keypoints[s.keypoint_id - 1] * s.sign for s in slots])
     # A stray intermediate shape may reach the camera; its evidence will tell, so clamp.
     k = perspective_factors(pts, view, max_factor=MAX_PERSPECTIVE_FACTOR)
-    rot, aim = view_rotation(view), np.asarray(view.aim, dtype=float)
-    # u = s·(aim·r + k·(p − aim)·r) = s·(k·p·r + (1 − k)·aim·r); v likewise with −w.
-    M *= np.repeat(k, 2)[:, None, None]
-    const[0::2] = (1.0 - k) * (aim @ rot[1])
-    const[1::2] = -(1.0 - k) * (aim @ rot[2])
+    rot, aim, d = view_rotation(view), np.asarray(view.aim, dtype=float), camera_direction(view)
+    # u(p) = aim·r + k(p)·(p − aim)·r with k(p) = D / (D − (p − aim)·d), so
+    # ∂u/∂p = k·r + (k²/D)·((p − aim)·r)·d (zero slope where k is clamped); v likewise with −w.
+    slope = np.where(k < MAX_PERSPECTIVE_FACTOR, k * k / view.distance, 0.0)
+    sign = np.array([s.sign for s in slots])
+    kp = np.array([s.keypoint_id - 1 for s in slots])
+    for axis, row, flip in ((0, rot[1], 1.0), (1, rot[2], -1.0)):
+        offset = (pts - aim) @ row
+        grad = k[:, None] * row + (slope * offset)[:, None] * d  # (k, 3) with respect to p
+        M[axis::2] = 0.0
+        M[axis::2][np.arange(len(slots)), kp] = flip * grad * sign
+        const[axis::2] = flip * (aim @ row + k * offset - np.einsum("ij,ij->i", grad, pts))
     return M, const
 
 
@@ -343,8 +353,8 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
         basis: the library's keypoint rows.
         slots: the k annotated keypoints; uv: (k, 2) float, their pixels.
         view: the camera. A pinhole view is solved as in :func:`solve_gauss`, by rounds that
-            freeze the perspective factors at the previous mix (and, given ``shapes``, aim at
-            its centre).
+            linearise the camera at the previous mix (and, given ``shapes``, aim at its
+            centre).
         shapes: (840, N) float, the library's S, to return the new model S·H (else ``shape``
             is None).
         warm_support: models to start the active set from (a previous solution's support).
@@ -390,9 +400,9 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         mixture: a mixture prior, one Gaussian (the library's covariance) around each template's
             mean, combined by their posterior weights (``"mixture"`` method).
 
-    A pinhole view (``view.distance``) is aimed at the car's centre and solved by fixed-point
-    iteration: freeze each keypoint's perspective factor and the aim at the current shape, solve,
-    repeat (``PERSPECTIVE_ITERATIONS``); the solution's ``view`` carries the final aim.
+    A pinhole view (``view.distance``) is aimed at the car's centre and solved by Newton rounds:
+    linearise the camera and set the aim at the current shape, solve, repeat
+    (``PERSPECTIVE_ITERATIONS``); the solution's ``view`` carries the final aim.
     """
     from dataclasses import replace
 
@@ -459,7 +469,7 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
 
     For a fixed scale g the shape coefficients are a ridge solve, done for every g at once in
     the right singular basis of AB (shared by all centres); the scale is then a 1-D minimisation
-    (a log grid, then golden-section search), vectorised over the centres.
+    (a log grid, then finer grids in the best bracket), vectorised over the centres.
     Args:
         ams: (T, m) the centres' centred projections (the mean shape's, or one per template);
             AB: (m, q) the basis'; b: (m,) the image.
@@ -495,13 +505,10 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     i = np.argmin(cost(grid), axis=1)
     rows = np.arange(len(ams))
     lo, hi = grid[rows, np.maximum(i - 1, 0)], grid[rows, np.minimum(i + 1, grid.shape[1] - 1)]
-    ratio = (np.sqrt(5.0) - 1.0) / 2.0
-    for _ in range(40):  # golden section: 0.618^40 ≈ 4e-9 of the bracket
-        x1, x2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
-        left = cost(np.stack([x1, x2], axis=1))
-        better1 = left[:, 0] < left[:, 1]
-        hi = np.where(better1, x2, hi)
-        lo = np.where(better1, lo, x1)
+    for _ in range(SCALE_PASSES):  # each pass narrows the bracket 8×, all centres at once
+        grid = np.linspace(lo, hi, 17, axis=1)
+        i = np.argmin(cost(grid), axis=1)
+        lo, hi = grid[rows, np.maximum(i - 1, 0)], grid[rows, np.minimum(i + 1, 16)]
     g = (lo + hi) / 2.0
     cv = coeffs(g[:, None])[:, 0]
     r = g[:, None] * (ams + cv @ ABV.T) - b
