@@ -108,9 +108,14 @@ def test_bad_inputs_exit_2_with_one_line_and_no_output(photo, tmp_path):
 def test_fit_with_a_camera_distance_reports_it(photo):
     out = photo / "dist"
     out.mkdir()
-    run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
-            "--distance", "auto", "-o", str(out / "car.step"), "--report", str(out / "r.json"), check=True)
+    proc = run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
+                   "-o", str(out / "car.step"), "--report", str(out / "r.json"), check=True)
     rep = json.loads((out / "r.json").read_text())
-    # The test photo is orthographic: "auto" finds a camera far away.
+    # The distance is found by default; the test photo is orthographic, so the camera is far away.
     assert rep["camera_distance_mm"] is None or rep["camera_distance_mm"] > 30_000
-    assert rep["residual_px_mean"] < 3
+    assert rep["residual_px_mean"] < 3 and "camera" in proc.stdout
+    # A told distance (no wheelbase given) is read at the fitted car's wheelbase, so it comes back.
+    proc = run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
+                   "--distance", "60000", "-o", str(out / "car.step"), "--report", str(out / "r.json"), check=True)
+    assert json.loads((out / "r.json").read_text())["camera_distance_mm"] == pytest.approx(60_000, rel=0.01)
+    assert "camera 60" in proc.stdout

@@ -124,8 +124,10 @@ def run_fit(args: argparse.Namespace) -> int:
             draw_error_chart(report["error_mm_at_truth_wheelbase"], chart,
                              annotated={s.name.removesuffix("_right") for s in result.slots})
     v = result.view
+    camera = ("orthographic camera" if result.camera_distance_mm is None
+              else f"camera {result.camera_distance_mm:.0f} mm away")
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
-          f"roll {v.roll:.1f}°), residual mean {result.solution.residual_px.mean():.2f} px, "
+          f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm -> {args.output}")
     if report and report["annotated_but_hidden"]:
         print(f"note: by the fitted geometry {', '.join(report['annotated_but_hidden'])} may be "

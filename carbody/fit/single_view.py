@@ -155,7 +155,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             ``"paper"`` (the paper's method as published).
         camera_distance_mm: None for SPEC's orthographic camera; a number for a pinhole camera
             that far from the car's centre (a photo taken from a few metres shows nearer parts
-            larger; without ``wheelbase_mm`` it is read at the library's mean wheelbase);
+            larger; without ``wheelbase_mm`` it is read at the fitted car's wheelbase);
             ``"auto"`` to find the distance (with the view, when it is refined).
         name: the car's name (STEP product).
     Raises:
@@ -177,10 +177,38 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         from carbody.library import load_library
 
         library = load_library()
-    topo = load_topology()
-    slots, uv = check_keypoints(keypoints, image_size, topo)
+    slots, uv = check_keypoints(keypoints, image_size, load_topology())
+    fit = dict(slots=slots, uv=uv, view=view, library=library, method=method,
+               prior_weight=prior_weight, refine=refine, deform=deform,
+               camera_distance_mm=camera_distance_mm, wheelbase_mm=wheelbase_mm, name=name)
+    if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
+        return _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
+    # A distance told in mm is read in wheelbases: at the car's own, which the fit gives; a pass
+    # or two more agree to DISTANCE_WHEELBASE_AGREEMENT.
+    read_at = float(np.mean(library.template_wheelbase_mm))
+    for _ in range(DISTANCE_PASSES):
+        result = _fit_checked(**fit, distance_wheelbase_mm=read_at)
+        if abs(result.wheelbase_mm / read_at - 1.0) < DISTANCE_WHEELBASE_AGREEMENT:
+            break
+        read_at = result.wheelbase_mm
+    return result
+
+
+#: Most fits of a photo whose camera distance is told in mm but whose wheelbase is not.
+DISTANCE_PASSES = 3
+
+#: The wheelbase the told distance is read at and the fitted one agree to this fraction.
+DISTANCE_WHEELBASE_AGREEMENT = 0.005
+
+
+def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
+                 prior_weight: float, refine: bool, deform: bool | None,
+                 camera_distance_mm: float | str | None, wheelbase_mm: float | None,
+                 distance_wheelbase_mm: float | None, name: str) -> FitResult:
+    """:func:`fit_wireframe` on checked input; a distance in mm is read at
+    ``distance_wheelbase_mm`` (default the library's mean wheelbase)."""
     model = prepared(library, method)
-    idx = topo.keypoint_point_indices
+    idx = load_topology().keypoint_point_indices
 
     if method == "paper":
         state = {"support": None}
@@ -195,7 +223,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
     free = DEFAULT_FREE if refine else ()
     if camera_distance_mm is not None:
-        view = _pinhole(view, camera_distance_mm, wheelbase_mm, library)
+        view = _pinhole(view, camera_distance_mm, distance_wheelbase_mm, library)
         if camera_distance_mm == "auto":
             free += ("perspective",)
     if free:
