@@ -544,7 +544,9 @@ def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, const: np.ndarray
         Xs = basis.X[kp] if idx is None else basis.X[:, :, idx][kp]
         A = np.einsum("kac,kcn->kan", coef, Xs, dtype=np.float64, optimize=False)
         A -= A.mean(axis=0)  # centring per image axis
-        return A.reshape(2 * len(kp), -1) + const[:, None]
+        A = A.reshape(2 * len(kp), -1)
+        A += const[:, None]
+        return A
 
     if n <= FULL_SET_MAX:
         return nnls_active_set(columns(None), b, passive=warm)
