@@ -86,18 +86,21 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     azimuths = AZIMUTH_SCAN_DEG if "azimuth" in free else (0.0,)
     elevations = [e for e in ELEVATION_SCAN_DEG if ELEVATION_RANGE_DEG[0] <= given.elevation + e
                   <= ELEVATION_RANGE_DEG[1]] if "elevation" in free else [0.0]
-    # A free perspective is scanned both ways: a photo from afar looks orthographic.
-    rhos = sorted({0.0, rho0}) if "perspective" in free else [rho0]
-    for d, e, rho in ((d, e, rho) for d in azimuths for e in elevations for rho in rhos):
-        if d == 0 and e == 0 and rho == rho0:
-            continue
-        v = view_at((given.azimuth + d, given.elevation + e, given.roll, rho))
+    def try_view(v: View) -> None:
+        nonlocal best_view, best
         try:
             sol = solve_at(v)
         except (FitError, AngleError):
-            continue
+            return
         if score(sol) < score(best):
             best_view, best = v, sol
+
+    for d, e in ((d, e) for d in azimuths for e in elevations):
+        if d or e:
+            try_view(view_at((given.azimuth + d, given.elevation + e, given.roll, rho0)))
+    if "perspective" in free and rho0 > 0:
+        # A photo from afar looks orthographic: try that at the best angles too.
+        try_view(View(best_view.azimuth, best_view.elevation, best_view.roll, None, given.aim))
 
     lo = np.array([given.azimuth - AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[0], given.roll - ROLL_RANGE_DEG,
                    min(PERSPECTIVE_RANGE[0], rho0)])
@@ -138,7 +141,7 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
         steps = np.array([2.0, 2.0, 2.0, 0.1])[mask]  # degrees; ρ
         simplex = np.vstack([x0] + [x0 + steps[i] * np.eye(len(x0))[i] for i in range(len(x0))])
         found = minimize(objective, x0, method="Nelder-Mead",
-                         options={"initial_simplex": simplex, "xatol": 0.01, "fatol": 1e-3,
+                         options={"initial_simplex": simplex, "xatol": 0.05, "fatol": 1e-2,
                                   "maxfev": 3 * max_evaluations})
         refined = view_at(full(found.x))
     else:

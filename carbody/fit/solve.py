@@ -80,10 +80,12 @@ class KeypointBasis:
         X: (35, 3, N) float, each model's 35 left keypoints, normalised units (float32 is fine
             for very large libraries).
         size: RMS distance of the mean model's keypoints from their centroid, normalised units.
+        mean: (35, 3) float, the mean model's keypoints (where a pinhole solve starts).
     """
 
     X: np.ndarray
     size: float
+    mean: np.ndarray | None = None
 
     @property
     def n_models(self) -> int:
@@ -100,7 +102,7 @@ class KeypointBasis:
         """Build from (35, 3, N) keypoint coordinates (normalised units)."""
         m = X.mean(axis=2, dtype=np.float64)
         size = float(np.sqrt(np.mean(np.sum((m - m.mean(axis=0)) ** 2, axis=1))))
-        return cls(X=X, size=size)
+        return cls(X=X, size=size, mean=m)
 
 
 @dataclass
@@ -363,7 +365,7 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
     """
     from dataclasses import replace
 
-    kp = basis.X.mean(axis=2, dtype=np.float64)  # a pinhole's first linearisation: the mean car
+    kp = basis.mean  # a pinhole's first linearisation: the mean car
     for round_ in range(1 if view.distance is None else PERSPECTIVE_ITERATIONS):
         if round_ and shapes is not None:
             view = replace(view, aim=car_centre(shapes[:, support] @ H[support]))
