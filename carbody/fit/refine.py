@@ -86,6 +86,7 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     azimuths = AZIMUTH_SCAN_DEG if "azimuth" in free else (0.0,)
     elevations = [e for e in ELEVATION_SCAN_DEG if ELEVATION_RANGE_DEG[0] <= given.elevation + e
                   <= ELEVATION_RANGE_DEG[1]] if "elevation" in free else [0.0]
+
     def try_view(v: View) -> None:
         nonlocal best_view, best
         try:
@@ -95,12 +96,12 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
         if score(sol) < score(best):
             best_view, best = v, sol
 
-    for d, e in ((d, e) for d in azimuths for e in elevations):
-        if d or e:
-            try_view(view_at((given.azimuth + d, given.elevation + e, given.roll, rho0)))
-    if "perspective" in free and rho0 > 0:
-        # A photo from afar looks orthographic: try that at the best angles too.
-        try_view(View(best_view.azimuth, best_view.elevation, best_view.roll, None, given.aim))
+    # A free perspective is scanned both ways: a photo from afar looks orthographic, and the two
+    # hypotheses' best angles can differ (a level side view seen from below, say).
+    rhos = sorted({0.0, rho0}) if "perspective" in free else [rho0]
+    for d, e, rho in ((d, e, rho) for d in azimuths for e in elevations for rho in rhos):
+        if d or e or rho != rho0:
+            try_view(view_at((given.azimuth + d, given.elevation + e, given.roll, rho)))
 
     lo = np.array([given.azimuth - AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[0], given.roll - ROLL_RANGE_DEG,
                    min(PERSPECTIVE_RANGE[0], rho0)])
