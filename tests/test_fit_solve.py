@@ -88,6 +88,25 @@ def test_leave_one_out_error_at_three_views(library, topology, template):
     assert np.mean([e[0] for e in errors.values()]) < 35, errors
 
 
+def test_a_paper_sized_subset_of_keypoints_is_enough(library, topology):
+    """The paper marks 17 keypoints at front 30°: any 17 of the visible ones fit a left-out car
+    almost as well as all of them; 6 leave much of it to the prior."""
+    t, loo, truth = _left_out(library, "Toyota Camry XV70")
+    wb = library.template_wheelbase_mm[t]
+    kp = topology.keypoint_point_indices
+    slots, uv = _observe(truth, View(30, 10), scale=0.5, noise=1.0, seed=3)
+
+    def error(k, draw):
+        pick = np.random.default_rng(draw).choice(len(slots), k, replace=False)
+        res = fit_wireframe({slots[i].name: uv[i] for i in pick}, View(30, 10), loo, wheelbase_mm=wb,
+                            refine=False)
+        return np.linalg.norm(res.wireframe.control_points[kp] - truth[kp] * wb / 1000, axis=1).mean()
+
+    seventeen, six = [error(17, d) for d in range(4)], [error(6, d) for d in range(4)]
+    assert max(seventeen) < 35 and np.mean(six) > np.mean(seventeen), (seventeen, six)
+    assert error(len(slots), 0) < 15
+
+
 def test_refinement_wins_back_a_wrong_angle(library, topology):
     template = "Volkswagen Golf Mk7"
     _, loo, truth = _left_out(library, template)
