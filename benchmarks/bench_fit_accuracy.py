@@ -238,8 +238,10 @@ def main(argv=None) -> int:
     print("| method | mean abs. | median abs. | max abs. |")
     print("|---|---|---|---|")
     for method in dict.fromkeys(r["method"] for r in rows):
+        # the fit with the right camera: SPEC's orthographic one, or the pinhole told its distance
         e = np.abs([r["wheelbase_estimate_pct"] for r in rows if r["method"] == method and not r["offset"]
-                    and r["lambda"] is None and r["deform"] == (method != "paper")])
+                    and not r["refine"] and r["lambda"] is None and r["deform"] == (method != "paper")
+                    and r.get("camera") == ("told" if args.distance is not None else None)])
         if len(e):
             print(f"| {method} | {e.mean():.1f} % | {np.median(e):.1f} % | {e.max():.1f} % |")
     for label in dict.fromkeys(case_label(r) for r in rows):
