@@ -80,7 +80,6 @@ def main(argv=None) -> int:
     kps = {s.name: p for s, p in zip(slots, uv)}
     print(f"# Single-view solve speed ({len(slots)} keypoints, view 30°; 2-core machine)\n")
 
-    rows = []
     basis = KeypointBasis.from_shapes(lib.S, idx)
     t_ours, sol = median_time(lambda: solve_simplex(basis, slots, uv, view), 50)
     M, _, Mc, _, z, b, rho = _centred(slots, uv, view)

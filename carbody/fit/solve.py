@@ -367,9 +367,8 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
     from dataclasses import replace
 
     kp = basis.mean  # a pinhole's first linearisation: the mean car
-    for round_ in range(1 if view.distance is None else PERSPECTIVE_ITERATIONS):
-        if round_ and shapes is not None:
-            view = replace(view, aim=car_centre(shapes[:, support] @ H[support]))
+    rounds = 1 if view.distance is None else PERSPECTIVE_ITERATIONS
+    for round_ in range(rounds):
         M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, kp)
         G = _solve_working_set(basis, Mc / basis.size, cc / basis.size, b, warm_support, slots, M)
         total = G.sum()
@@ -379,6 +378,8 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
         H = G / total
         support = warm_support = np.flatnonzero(H > 0)
         kp = np.tensordot(basis.X[:, :, support].astype(np.float64), H[support], axes=([2], [0]))
+        if round_ + 1 < rounds and shapes is not None:  # the next round aims at this mix's centre
+            view = replace(view, aim=car_centre(shapes[:, support] @ H[support]))
     scale = total * rho / basis.size
     if view.distance is not None:  # the residual of the camera itself, not of its last linearisation
         M, const = camera_rows(slots, view, kp)
