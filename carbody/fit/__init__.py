@@ -4,7 +4,8 @@ Public API::
 
     from carbody.fit import fit_wireframe, read_keypoints, visible_keypoints, View
     ann = read_keypoints("car.json")                    # project JSON, COCO or labelme
-    result = fit_wireframe(ann.points, 30, image_size=ann.image_size)
+    result = fit_wireframe(ann.points, 30, image_size=ann.image_size,
+                           camera_distance_mm="auto")   # a photo: find the camera's distance
     result.wireframe                                    # carbody.wireframe.Wireframe, mm
     result.view, result.residuals_px(), result.keypoints_mm()
 
