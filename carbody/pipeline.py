@@ -127,6 +127,9 @@ class Reconstruction:
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm",
         ]
+        if fit["suspect_keypoints"]:
+            lines.append("the fitted car passes far from these marks (check them): "
+                         + ", ".join(f"{n} ({fit['residual_px'][n]:.0f} px)" for n in fit["suspect_keypoints"]))
         if "error_mm_mean" in fit:
             lines.append(f"3D keypoint error vs truth: mean {fit['error_mm_mean']:.1f} mm, "
                          f"max {fit['error_mm_max']:.1f} mm at the fitted wheelbase; "

@@ -59,6 +59,7 @@ def test_fit_writes_step_overlay_and_report(photo):
     assert len(rep["keypoints_mm"]) >= 35 and rep["residual_px_mean"] < 3
     assert rep["top_weights"] and "Volvo V60" not in rep["template_mix"]
     assert len(rep["annotated_but_hidden"]) <= 2 and "nose_centre" in rep["visible_at_refined_view"]
+    assert rep["suspect_keypoints"] == [] and "passes far from" not in proc.stdout
     assert rep["error_mm_mean"] < 80 and set(rep["error_mm"]) == {k for k in rep["keypoints_mm"] if not k.endswith("_right")}
     assert rep["error_mm_at_truth_wheelbase_mean"] < 80 and len(rep["error_mm_at_truth_wheelbase"]) == 35
     assert (out / "r.errors.png").is_file()

@@ -107,6 +107,24 @@ def test_a_paper_sized_subset_of_keypoints_is_enough(library, topology):
     assert error(len(slots), 0) < 15
 
 
+def test_misplaced_or_swapped_marks_are_named(library):
+    """A mark 50 px off, or two names swapped left for right, stand out of the residuals; a clean
+    set of marks on a left-out car has no suspect."""
+    t, loo, truth = _left_out(library, "Toyota Camry XV70")
+    slots, uv = _observe(truth, View(30, 10), scale=0.5, noise=1.0, seed=5)
+    marks = {s.name: p for s, p in zip(slots, uv)}
+
+    def suspects(m):
+        return fit_wireframe(m, View(30, 10), loo, refine=False).suspect_keypoints()
+
+    assert suspects(marks) == []
+    moved = dict(marks, window_front_top=marks["window_front_top"] + [40.0, -30.0])
+    assert suspects(moved)[0] == "window_front_top"
+    a, b = "front_top_corner", "front_top_corner_right"
+    swapped = dict(marks, **{a: marks[b], b: marks[a]})
+    assert {a, b} <= set(suspects(swapped)[:4])
+
+
 def test_refinement_wins_back_a_wrong_angle(library, topology):
     template = "Volkswagen Golf Mk7"
     _, loo, truth = _left_out(library, template)

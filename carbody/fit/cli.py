@@ -129,6 +129,11 @@ def run_fit(args: argparse.Namespace) -> int:
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm -> {args.output}")
+    suspects = result.suspect_keypoints()
+    if suspects:
+        res = result.residuals_px()
+        print("note: the fitted car passes far from " + ", ".join(f"{n} ({res[n]:.0f} px)" for n in suspects)
+              + ": check those marks (place, left/right name)")
     if report and report["annotated_but_hidden"]:
         print(f"note: by the fitted geometry {', '.join(report['annotated_but_hidden'])} may be "
               "hidden at this view (check the left/right names)")

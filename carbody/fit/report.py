@@ -58,6 +58,7 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "residual_px_max": float(np.max(list(res.values()))),
         "visible_at_refined_view": visible,
         "annotated_but_hidden": [s.name for s in result.slots if s.name not in visible],
+        "suspect_keypoints": result.suspect_keypoints(),
         "deformation_mm_max": result.deformation_mm,
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),

@@ -49,6 +49,13 @@ def prepared_field(library: Library) -> DeformationField:
     return _PREPARED[key][1]
 
 
+#: A mark is suspect when its residual exceeds this many times the median residual …
+SUSPECT_RESIDUAL_RATIO = 4.0
+
+#: … and this fraction of the marks' RMS spread about their centre (≈ 14 px for a car 900 px wide).
+SUSPECT_RESIDUAL_SPREAD = 0.05
+
+
 @dataclass
 class FitResult:
     """A fitted car.
@@ -102,6 +109,16 @@ class FitResult:
         """{name: reprojection distance, px} per annotated keypoint."""
         d = np.linalg.norm(self.reprojected() - self.uv, axis=1)
         return {s.name: float(e) for s, e in zip(self.slots, d)}
+
+    def suspect_keypoints(self) -> list[str]:
+        """Marks the fit cannot follow, worst first: a reprojection residual over
+        ``SUSPECT_RESIDUAL_RATIO`` × the median and over ``SUSPECT_RESIDUAL_SPREAD`` × the marks'
+        spread (a mark in the wrong place, or two names swapped)."""
+        res = self.residuals_px()
+        spread = float(np.sqrt(np.mean(np.sum((self.uv - self.uv.mean(axis=0)) ** 2, axis=1))))
+        limit = max(SUSPECT_RESIDUAL_RATIO * float(np.median(list(res.values()))),
+                    SUSPECT_RESIDUAL_SPREAD * spread)
+        return sorted((n for n, r in res.items() if r > limit), key=lambda n: -res[n])
 
     def project_points(self, points_mm: np.ndarray) -> np.ndarray:
         """(..., 2) pixels of car-frame points (mm) under the fitted camera."""
