@@ -33,12 +33,13 @@ OFFSET_DEG = 10.0
 
 
 def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, elevation: float = 0.0,
-                   distance: float | None = None):
+                   distance: float | None = None, noise_px: float = NOISE_PX):
     """Keypoints of a normalised (280, 3) car seen at a view: ({name: (u, v)}, (width, height)).
 
     Args:
         distance: None for SPEC's orthographic camera; else a pinhole camera this far from the
             car's centre, in the car's own units (a real photo's perspective).
+        noise_px: standard deviation of the marking error, pixels.
     """
     from carbody.camera import View, camera_direction, project
     from carbody.fit.visibility import visible_slots
@@ -64,12 +65,12 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
     eye = view if distance is None else View(azimuth, elevation, 0.0, distance, tuple(centre))
     slots = visible_slots(eye, truth)
     pts = np.array([truth[s.point_index] * s.sign for s in slots])
-    uv = offset + scale * camera(pts) + rng.normal(0.0, NOISE_PX, (len(slots), 2))
+    uv = offset + scale * camera(pts) + rng.normal(0.0, noise_px, (len(slots), 2))
     return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, (IMAGE_WIDTH, height)
 
 
 def run_template(args) -> list[dict]:
-    t, cases, lambdas, angles, elevation, distance_mm = args
+    t, cases, lambdas, angles, elevation, distance_mm, noise_px = args
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
     from carbody.topology import load_topology
@@ -85,7 +86,7 @@ def run_template(args) -> list[dict]:
     rows = []
     for azimuth in angles:
         distance = None if distance_mm is None else distance_mm * 1000.0 / wb  # normalised units
-        kps, size = synthetic_view(truth, azimuth, rng, elevation, distance)
+        kps, size = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px)
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
         for method, lam, offset, refine, deform, *extra in cases + [("mixture", l, 0.0, False, True) for l in lambdas]:
@@ -187,6 +188,8 @@ def main(argv=None) -> int:
     ap.add_argument("--elevation", type=float, default=0.0,
                     help="camera elevation of the synthetic views (degrees; given to the fit)")
     ap.add_argument("--known-only", action="store_true", help="only the view-known cases")
+    ap.add_argument("--noise", type=float, default=NOISE_PX,
+                    help="marking error, pixels (standard deviation on a 1000 px wide image)")
     ap.add_argument("--distance", type=float, default=None,
                     help="photograph with a pinhole camera this far from the car's centre (mm) "
                          "instead of SPEC's orthographic one, and fit it as orthographic, told the "
@@ -222,11 +225,11 @@ def main(argv=None) -> int:
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
-        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance)
+        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance, args.noise)
                                                          for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
           f"elevation {args.elevation:g}°, "
-          f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}, {NOISE_PX:g} px noise on a {IMAGE_WIDTH} px wide image "
+          f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
     found = [r for r in rows if r.get("camera") == "auto" and args.distance is not None]
