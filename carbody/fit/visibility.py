@@ -124,7 +124,8 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
             if owns(r):
                 continue
             inside, dist = _inside(poly, q)
-            if not inside or dist < OCCLUSION_MARGIN * size * _image_scale(view, p):
+            # (the margin is a length on the car: a pinhole shows it larger near the camera)
+            if not inside or dist < OCCLUSION_MARGIN * size * float(perspective_factors(p, view)):
                 continue
             # How far along the ray from p toward the camera it meets the region's plane.
             nd = r[1] @ ray
@@ -137,11 +138,6 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
         if not hidden:
             seen.append(slot.name)
     return seen
-
-
-def _image_scale(view: View, p: np.ndarray) -> float:
-    """How much larger the camera shows lengths near p than an orthographic one (1 for it)."""
-    return float(perspective_factors(p, view))
 
 
 def _junction_of(slot: KeypointSlot, topo: Topology) -> str:
