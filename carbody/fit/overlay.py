@@ -1,5 +1,6 @@
 """The overlay picture (paper Fig. 9–10): photo, annotated (red) and reprojected (green)
-keypoints, and the fitted wireframe projected with the refined camera."""
+keypoints, and the fitted wireframe projected with the refined camera; marks the fit cannot
+follow (:meth:`~carbody.fit.single_view.FitResult.suspect_keypoints`) ringed in magenta."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -32,7 +33,10 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
                           thick, cv2.LINE_AA, shift=4)
     reproj = result.reprojected()
     r = 2 + 2 * thick
+    suspects = set(result.suspect_keypoints())
     for slot, (u, v), (pu, pv) in zip(result.slots, result.uv, reproj):
+        if slot.name in suspects:
+            cv2.circle(out, (round(u), round(v)), 3 * r, (255, 0, 255), 2 * thick, cv2.LINE_AA)
         cv2.line(out, (round(u), round(v)), (round(pu), round(pv)), (0, 200, 255), thick, cv2.LINE_AA)
         cv2.circle(out, (round(u), round(v)), r, (0, 0, 255), -1, cv2.LINE_AA)
         cv2.circle(out, (round(pu), round(pv)), r, (0, 200, 0), thick, cv2.LINE_AA)
