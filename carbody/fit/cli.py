@@ -52,7 +52,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "Gaussian around the library mean; paper: the paper's plain ΣH=1, 0≤H≤1")
     p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
                    help=DISTANCE_HELP + "; default auto")
-    p.add_argument("--no-refine", action="store_true", help="keep the given view as it is")
+    p.add_argument("--no-refine", action="store_true",
+                   help="keep the given view as it is (an 'auto' distance is still found)")
     p.add_argument("--no-deform", action="store_true",
                    help="keep the library mix as it is (no smooth move onto the marked keypoints)")
     p.add_argument("--output", "-o", required=True, help="wireframe STEP file to write")
