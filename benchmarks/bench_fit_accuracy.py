@@ -33,44 +33,59 @@ OFFSET_DEG = 10.0
 
 
 def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, elevation: float = 0.0,
-                   distance: float | None = None, noise_px: float = NOISE_PX):
+                   distance: float | None = None, noise_px: float = NOISE_PX, off_centre_deg: float = 0.0):
     """Keypoints of a normalised (280, 3) car seen at a view: ({name: (u, v)}, (width, height)).
 
     Args:
-        distance: None for SPEC's orthographic camera; else a pinhole camera this far from the
-            car's centre, in the car's own units (a real photo's perspective).
+        distance: None for SPEC's orthographic camera (the car centred on a 1000 px wide image,
+            900 px wide); else a pinhole camera this far from the car's centre, in the car's own
+            units (a real photo's perspective), its optical axis through the image centre.
         noise_px: standard deviation of the marking error, pixels.
+        off_centre_deg: the pinhole camera's axis turned this far to the car's right of it, so
+            the car sits off the photo's centre (the photo is made wide enough to hold it).
     """
-    from carbody.camera import View, camera_direction, project
+    from carbody.camera import View, project, view_rotation
     from carbody.fit.visibility import visible_slots
 
     view = View(azimuth, elevation)
     both = np.concatenate([truth, truth * [-1.0, 1.0, 1.0]])
     centre = (both.min(axis=0) + both.max(axis=0)) / 2
+    if distance is None:
+        p = project(both, view)
+        scale = CAR_SPAN / np.ptp(p[:, 0])
+        size = (IMAGE_WIDTH, int(np.ceil(np.ptp(p[:, 1]) * scale + IMAGE_WIDTH - CAR_SPAN)))
+        offset = (np.array(size) - scale * (p.min(axis=0) + p.max(axis=0))) / 2
 
-    def camera(points: np.ndarray) -> np.ndarray:
-        """Image coordinates at scale 1: orthographic, or pinhole (nearer points larger)."""
-        if distance is None:
-            return project(points, view)
-        toward = (points - centre) @ camera_direction(view)
-        c = project(centre, view)
-        return c + (project(points, view) - c) * (distance / (distance - toward))[:, None]
+        def camera(points: np.ndarray) -> np.ndarray:
+            return offset + scale * project(points, view)
+    else:
+        d, r, w = view_rotation(view)
+        eye = centre + distance * d
+        turn = np.radians(off_centre_deg)
+        axis = -np.cos(turn) * d + np.sin(turn) * r
+        right = np.cos(turn) * r + np.sin(turn) * d
 
-    p = camera(both)
-    scale = CAR_SPAN / np.ptp(p[:, 0])
-    height = int(np.ceil(np.ptp(p[:, 1]) * scale + 2 * (IMAGE_WIDTH - CAR_SPAN) / 2))
-    offset = (IMAGE_WIDTH / 2 - scale * (p[:, 0].min() + p[:, 0].max()) / 2,
-              height / 2 - scale * (p[:, 1].min() + p[:, 1].max()) / 2)
+        def image_plane(points: np.ndarray) -> np.ndarray:  # (x right, y down) / depth
+            q = points - eye
+            return np.stack([q @ right, -(q @ w)], axis=-1) / (q @ axis)[:, None]
+
+        p = image_plane(both)
+        focal = CAR_SPAN / np.ptp(p[:, 0])
+        half = np.abs(p).max(axis=0) * focal + (IMAGE_WIDTH - CAR_SPAN) / 2
+        size = (int(np.ceil(2 * half[0])), int(np.ceil(2 * half[1])))
+
+        def camera(points: np.ndarray) -> np.ndarray:
+            return np.array(size) / 2 + focal * image_plane(points)
     # What the camera sees: a close one sees less of the faces turned away.
-    eye = view if distance is None else View(azimuth, elevation, 0.0, distance, tuple(centre))
-    slots = visible_slots(eye, truth)
+    eye_view = view if distance is None else View(azimuth, elevation, 0.0, distance, tuple(centre))
+    slots = visible_slots(eye_view, truth)
     pts = np.array([truth[s.point_index] * s.sign for s in slots])
-    uv = offset + scale * camera(pts) + rng.normal(0.0, noise_px, (len(slots), 2))
-    return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, (IMAGE_WIDTH, height)
+    uv = camera(pts) + rng.normal(0.0, noise_px, (len(slots), 2))
+    return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, size
 
 
 def run_template(args) -> list[dict]:
-    t, cases, lambdas, angles, elevation, distance_mm, noise_px = args
+    t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre = args
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
     from carbody.topology import load_topology
@@ -86,11 +101,11 @@ def run_template(args) -> list[dict]:
     rows = []
     for azimuth in angles:
         distance = None if distance_mm is None else distance_mm * 1000.0 / wb  # normalised units
-        kps, size = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px)
+        kps, size = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px, off_centre)
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
         for method, lam, offset, refine, deform, *extra in cases + [("mixture", l, 0.0, False, True) for l in lambdas]:
-            level, camera = (list(extra) + [False, None])[:2]
+            level, camera, principal = list(extra) + [False, None, "car"][len(extra):]
             given_elevation = 0.0 if level else elevation
             kw_camera = {}
             if camera == "told":
@@ -103,12 +118,14 @@ def run_template(args) -> list[dict]:
 
             res = fit_wireframe(kps, View(azimuth + offset, given_elevation), loo, image_size=size,
                                 wheelbase_mm=wb, method=method, refine=refine,
-                                deform=deform and method != "paper", **kw, **kw_camera)
+                                deform=deform and method != "paper", principal_point=principal,
+                                **kw, **kw_camera)
             dt = time.perf_counter() - t0
             err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
             rows.append({"template": name, "azimuth": azimuth, "method": method, "lambda": lam,
                          "offset": offset, "refine": refine, "deform": deform and method != "paper",
                          "given_elevation": given_elevation, "elevation": elevation, "camera": camera,
+                         "principal": principal, "off_centre_deg": off_centre,
                          "refined_distance_mm": None if res.view.distance is None
                          else res.view.distance * wb / 1000.0,
                          "k": len(kps),
@@ -137,6 +154,8 @@ def case_label(r: dict) -> str:
         lab += ", fit told the distance"
     elif r.get("camera") == "auto":
         lab += ", distance found by the fit"
+    if r.get("principal") == "centre" and r.get("camera"):
+        lab += ", axis through the photo's centre"
     return lab
 
 
@@ -194,6 +213,10 @@ def main(argv=None) -> int:
                     help="photograph with a pinhole camera this far from the car's centre (mm) "
                          "instead of SPEC's orthographic one, and fit it as orthographic, told the "
                          "distance, or finding it")
+    ap.add_argument("--off-centre", type=float, default=0.0, metavar="DEG",
+                    help="with --distance: turn the camera's axis this far off the car (the car "
+                         "off the photo's centre), and compare the fit taking the camera to point "
+                         "at the car (the default) with one told the axis (--principal-point centre)")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -220,16 +243,24 @@ def main(argv=None) -> int:
                  ("mixture", None, OFFSET_DEG, True, True, False, "auto"),
                  # as a photo comes: azimuth 10° off, elevation and distance unknown
                  ("mixture", None, OFFSET_DEG, True, True, True, "auto")]
+    if args.distance is not None and args.off_centre:
+        cases = [("mixture", None, 0.0, False, True, False, "told"),
+                 ("mixture", None, 0.0, False, True, False, "told", "centre"),
+                 ("mixture", None, 0.0, True, True, False, "auto"),
+                 ("mixture", None, 0.0, True, True, False, "auto", "centre"),
+                 ("mixture", None, OFFSET_DEG, True, True, True, "auto"),
+                 ("mixture", None, OFFSET_DEG, True, True, True, "auto", "centre")]
     if args.known_only:
         cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
-        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance, args.noise)
+        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance, args.noise, args.off_centre)
                                                          for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
           f"elevation {args.elevation:g}°, "
-          f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image "
+          f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}"
+          f"{f', its axis {args.off_centre:g}° off the car' if args.off_centre else ''}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
     found = [r for r in rows if r.get("camera") == "auto" and args.distance is not None]

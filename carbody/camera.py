@@ -159,6 +159,40 @@ def perspective_factors(points: np.ndarray, view: View, max_factor: float | None
     return view.distance / gap
 
 
+def look_at_homography(target_px: np.ndarray, principal_px: np.ndarray, focal_px: float) -> np.ndarray:
+    """(3, 3) homography from a photo's pixels to those of the same camera turned (about its
+    centre, by the least rotation) to look straight at ``target_px``.
+
+    A photo's optical axis goes through its principal point (``principal_px``, the image centre
+    of an uncropped photo); a car off that axis is seen obliquely by the image plane, which the
+    pinhole model aimed at the car (:class:`View` with a distance) does not describe. The turned
+    camera's picture does; it has the same focal length and principal point.
+
+    Args:
+        target_px: (2,) pixels (u right, v down) the turned camera looks at.
+        principal_px: (2,) pixels, the optical axis.
+        focal_px: focal length, pixels.
+    """
+    K = np.array([[focal_px, 0.0, principal_px[0]], [0.0, focal_px, principal_px[1]], [0.0, 0.0, 1.0]])
+    ray = np.linalg.solve(K, [target_px[0], target_px[1], 1.0])
+    ray /= np.linalg.norm(ray)
+    axis = np.cross(ray, [0.0, 0.0, 1.0])
+    s, c = np.linalg.norm(axis), ray[2]
+    if s < 1e-12:
+        return np.eye(3)
+    k = axis / s
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    R = np.eye(3) + s * kx + (1.0 - c) * kx @ kx  # Rodrigues: takes ray onto the axis
+    return K @ R @ np.linalg.inv(K)
+
+
+def apply_homography(H: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """(..., 2) pixels mapped by a (3, 3) homography."""
+    p = np.asarray(uv, dtype=float)
+    q = p @ H[:, :2].T + H[:, 2]
+    return q[..., :2] / q[..., 2:3]
+
+
 def depth(points: np.ndarray, view: View) -> np.ndarray:
     """(...,) distance of each point toward the camera (larger = nearer), same unit as points."""
     return np.asarray(points, dtype=float) @ camera_direction(view)

@@ -107,3 +107,21 @@ def test_camera_inside_the_car_is_refused():
         perspective_factors(np.array([[0.0, 3000.0, 0.0]]), View(180, 0, 0, 1000.0))
     with pytest.raises(AngleError, match="positive"):
         View(30, 0, 0, -5.0)
+
+
+def test_look_at_homography_turns_the_camera_to_a_point():
+    from carbody.camera import apply_homography, look_at_homography
+
+    principal, target = np.array([640.0, 360.0]), np.array([1000.0, 200.0])
+    H = look_at_homography(target, principal, 900.0)
+    assert np.allclose(apply_homography(H, target), principal)
+    assert np.allclose(look_at_homography(principal, principal, 900.0), np.eye(3))
+    # A rotation about the camera centre: the angle between any two rays is kept.
+    a, b = np.array([100.0, 50.0]), np.array([1200.0, 700.0])
+
+    def ray(p):
+        v = np.append((p - principal) / 900.0, 1.0)
+        return v / np.linalg.norm(v)
+
+    Ha, Hb = apply_homography(H, a), apply_homography(H, b)
+    assert ray(a) @ ray(b) == pytest.approx(ray(Ha) @ ray(Hb), abs=1e-12)

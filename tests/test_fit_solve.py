@@ -107,6 +107,38 @@ def test_a_paper_sized_subset_of_keypoints_is_enough(library, topology):
     assert error(len(slots), 0) < 15
 
 
+def test_car_off_the_photo_centre_is_turned_to(library, topology):
+    """An uncropped photo from 2.2 wheelbases (≈ 6 m) whose optical axis points 15° beside the
+    car: taking the camera to point at the car leaves the image plane's obliquity as a shape
+    error; told the photo's centre, the fit turns the camera to the car and lands on it."""
+    from carbody.camera import view_rotation
+
+    t = 3
+    truth = library.points(_original(library, t))
+    both = np.concatenate([truth, truth * [-1, 1, 1]])
+    centre = (both.min(axis=0) + both.max(axis=0)) / 2
+    d, r, w = view_rotation(View(30, 10))
+    eye, turn = centre + 2200.0 * d, np.radians(15.0)
+    axis, right = -np.cos(turn) * d + np.sin(turn) * r, np.cos(turn) * r + np.sin(turn) * d
+    slots = visible_slots(View(30, 10, 0, 2200.0, tuple(centre)), truth)
+    q = np.array([truth[s.point_index] * s.sign for s in slots]) - eye
+    uv = np.array([1000.0, 500.0]) + 900.0 * np.stack([q @ right, -(q @ w)], axis=1) / (q @ axis)[:, None]
+    marks = {s.name: p for s, p in zip(slots, uv)}
+    kp = topology.keypoint_point_indices
+
+    def error(principal):
+        res = fit_wireframe(marks, View(30, 10), library, image_size=(2000, 1000), wheelbase_mm=1000.0,
+                            refine=False, camera_distance_mm=2200.0,
+                            principal_point=principal)
+        return res, np.linalg.norm(res.wireframe.control_points[kp] - truth[kp], axis=1).mean()
+
+    turned, err_turned = error("centre")
+    _, err_aimed = error("car")
+    assert err_turned < 10 and err_aimed > 3 * err_turned, (err_turned, err_aimed)
+    assert turned.to_photo is not None and turned.solution.residual_px.mean() < 1.0
+    assert np.allclose(turned.uv, uv)  # the marks as given, residuals in the photo's pixels
+
+
 def test_misplaced_or_swapped_marks_are_named(library):
     """A mark 50 px off, or two names swapped left for right, stand out of the residuals; a clean
     set of marks on a left-out car has no suspect."""

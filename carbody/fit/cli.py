@@ -52,6 +52,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "Gaussian around the library mean; paper: the paper's plain ΣH=1, 0≤H≤1")
     p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
                    help=DISTANCE_HELP + "; default auto")
+    p.add_argument("--principal-point", default="car", choices=("car", "centre"),
+                   help="where the camera's optical axis meets the photo: 'car' (the camera "
+                        "pointed at the car, or the photo cropped around it; default) or "
+                        "'centre' (an uncropped photo with the car off its centre: the fit "
+                        "corrects the obliquity; best with --distance MM)")
     p.add_argument("--no-refine", action="store_true",
                    help="keep the given view as it is (an 'auto' distance is still found)")
     p.add_argument("--no-deform", action="store_true",
@@ -110,7 +115,7 @@ def run_fit(args: argparse.Namespace) -> int:
     result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                            method=args.method, refine=not args.no_refine,
                            deform=False if args.no_deform else None,
-                           camera_distance_mm=distance,
+                           camera_distance_mm=distance, principal_point=args.principal_point,
                            name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
     report = build_report(result, truth) if (args.report or truth is not None) else None

@@ -53,7 +53,7 @@ ELEVATION_SCAN_DEG = (-8.0, 0.0, 8.0, 16.0)
 
 
 def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations: int = 60,
-                free: tuple[str, ...] = DEFAULT_FREE):
+                free: tuple[str, ...] = DEFAULT_FREE, scan: bool = True):
     """The view near ``given`` whose solve has the least evidence (or residual).
 
     Args:
@@ -64,6 +64,8 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
         free: what is refined (the rest stays as given): "azimuth", "elevation", "roll",
             "perspective" (1/distance of a pinhole view; ``given.distance`` None starts it
             orthographic).
+        scan: try the coarse grid of views first (off: only the local search, for a start
+            known to be close).
     Returns:
         (refined View, its solution).
     """
@@ -99,6 +101,8 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     # A free perspective is scanned both ways: a photo from afar looks orthographic, and the two
     # hypotheses' best angles can differ (a level side view seen from below, say).
     rhos = sorted({0.0, rho0}) if "perspective" in free else [rho0]
+    if not scan:
+        azimuths, elevations, rhos = (0.0,), [0.0], [rho0]
     for d, e, rho in ((d, e, rho) for d in azimuths for e in elevations for rho in rhos):
         if d or e or rho != rho0:
             try_view(view_at((given.azimuth + d, given.elevation + e, given.roll, rho)))

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carbody.errors import FitError
-from carbody.camera import View, project
+from carbody.camera import View, apply_homography, look_at_homography, project
 from carbody.fit.deform import DeformationField
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
 from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view
@@ -70,6 +70,9 @@ class FitResult:
         library: the library used (names for the report).
         deformation_mm: largest control-point move of the photo-matching deformation, mm
             (0 when it is off); the weights describe the mix before it.
+        to_photo: (3, 3) homography from the fitted camera's pixels to the photo's, when the
+            camera was turned to look at an off-centre car (see :func:`fit_wireframe`); the
+            solution's scale and offset are in the turned camera's pixels.
     """
 
     wireframe: Wireframe
@@ -82,6 +85,7 @@ class FitResult:
     method: str
     library: Library = field(repr=False)
     deformation_mm: float = 0.0
+    to_photo: np.ndarray | None = None
 
     @property
     def mm_per_unit(self) -> float:
@@ -103,7 +107,7 @@ class FitResult:
     def reprojected(self) -> np.ndarray:
         """(k, 2) float, pixels of the fitted annotated keypoints under the refined camera."""
         pts = np.array([self.wireframe.control_points[s.point_index] * s.sign for s in self.slots])
-        return project(pts / self.mm_per_unit, self.view, self.solution.scale, self.solution.offset)
+        return self.project_points(pts)
 
     def residuals_px(self) -> dict[str, float]:
         """{name: reprojection distance, px} per annotated keypoint."""
@@ -122,8 +126,9 @@ class FitResult:
 
     def project_points(self, points_mm: np.ndarray) -> np.ndarray:
         """(..., 2) pixels of car-frame points (mm) under the fitted camera."""
-        return project(np.asarray(points_mm) / self.mm_per_unit, self.view, self.solution.scale,
-                       self.solution.offset)
+        uv = project(np.asarray(points_mm) / self.mm_per_unit, self.view, self.solution.scale,
+                     self.solution.offset)
+        return uv if self.to_photo is None else apply_homography(self.to_photo, uv)
 
     def top_weights(self, n: int = 10) -> list[dict]:
         """The n library models of largest |weight|: template, expansion factors, weight."""
@@ -151,6 +156,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                   wheelbase_mm: float | None = None, method: str = METHODS[0],
                   prior_weight: float = DEFAULT_PRIOR_WEIGHT, refine: bool = True,
                   deform: bool | None = None, camera_distance_mm: float | str | None = None,
+                  principal_point: str | tuple[float, float] = "car",
                   name: str = "fitted car") -> FitResult:
     """Fit the car's 3D wireframe to keypoints marked on one photo.
 
@@ -174,6 +180,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             that far from the car's centre (a photo taken from a few metres shows nearer parts
             larger; without ``wheelbase_mm`` it is read at the fitted car's wheelbase);
             ``"auto"`` to find the distance (with the view, when it is refined).
+        principal_point: where a pinhole camera's optical axis meets the photo: ``"car"``
+            (default: the camera pointed at the car's centre, or the photo cropped around
+            it), ``"centre"`` (the image centre of an uncropped photo; needs ``image_size``)
+            or (u, v) pixels. A car off the axis is seen obliquely by the image plane: the fit
+            then turns the camera about its centre to look at the car
+            (:func:`~carbody.camera.look_at_homography`, focal length from the fit) and fits
+            again. Reliable with the distance told; with ``"auto"`` a car far off the axis
+            can pass for a closer camera (BENCHMARKS.md). Orthographic fits ignore it.
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -195,20 +209,68 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
         library = load_library()
     slots, uv = check_keypoints(keypoints, image_size, load_topology())
+    principal = _principal_point(principal_point, image_size)
     fit = dict(slots=slots, uv=uv, view=view, library=library, method=method,
                prior_weight=prior_weight, refine=refine, deform=deform,
                camera_distance_mm=camera_distance_mm, wheelbase_mm=wheelbase_mm, name=name)
+    first = fit
     if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
-        return _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
-    # A distance told in mm is read in wheelbases: at the car's own, which the fit gives; a pass
-    # or two more agree to DISTANCE_WHEELBASE_AGREEMENT.
-    read_at = float(np.mean(library.template_wheelbase_mm))
-    for _ in range(DISTANCE_PASSES):
-        result = _fit_checked(**fit, distance_wheelbase_mm=read_at)
-        if abs(result.wheelbase_mm / read_at - 1.0) < DISTANCE_WHEELBASE_AGREEMENT:
-            break
-        read_at = result.wheelbase_mm
+        result = _fit_checked(**first, distance_wheelbase_mm=wheelbase_mm)
+    else:
+        # A distance told in mm is read in wheelbases: at the car's own, which the fit gives; a
+        # pass or two more agree to DISTANCE_WHEELBASE_AGREEMENT.
+        read_at = float(np.mean(library.template_wheelbase_mm))
+        for _ in range(DISTANCE_PASSES):
+            result = _fit_checked(**first, distance_wheelbase_mm=read_at)
+            if abs(result.wheelbase_mm / read_at - 1.0) < DISTANCE_WHEELBASE_AGREEMENT:
+                break
+            read_at = result.wheelbase_mm
+    if principal is None or result.view.distance is None:
+        return result
+    # Turn the camera to look at the car's centre by the fit's own focal length; refit.
+    looking = np.array([0.0, 0.0, 1.0])  # the direction the camera looks, its own frame
+    for _ in range(PRINCIPAL_PASSES):
+        aim_px = result.project_points(np.asarray(result.view.aim) * result.mm_per_unit)
+        focal_px = result.solution.scale * result.view.distance
+        to_car = np.append((aim_px - principal) / focal_px, 1.0)
+        to_car /= np.linalg.norm(to_car)
+        if np.degrees(np.arccos(min(1.0, float(to_car @ looking)))) < PRINCIPAL_TOLERANCE_DEG:
+            break  # the camera already looks at the car (by the latest fit's focal length)
+        looking = to_car
+        to_turned = look_at_homography(aim_px, principal, focal_px)
+        result = _fit_checked(**{**fit, "uv": apply_homography(to_turned, uv), "view": result.view},
+                              distance_wheelbase_mm=result.wheelbase_mm, scan=False)
+        _in_photo(result, to_turned, uv, view)
     return result
+
+
+def _in_photo(result: FitResult, to_turned: np.ndarray, uv: np.ndarray, given: View) -> None:
+    """Point a fit made in a turned camera's pixels back at the photo's marks."""
+    result.to_photo, result.uv, result.given_view = np.linalg.inv(to_turned), uv, given
+    result.solution.residual_px = np.linalg.norm(result.reprojected() - uv, axis=1)
+
+
+#: Refits with the camera turned toward an off-centre car (each from the previous one's aim).
+PRINCIPAL_PASSES = 3
+
+#: The camera looks at the car when the direction to the car's centre moves less than this,
+#: degrees: left over, such a tilt draws one end of a car spanning 30° of the photo ≈ 0.2 % larger.
+PRINCIPAL_TOLERANCE_DEG = 0.25
+
+
+def _principal_point(principal_point, image_size) -> np.ndarray | None:
+    """(2,) pixels where the optical axis meets the photo, or None (aimed at the car)."""
+    if principal_point == "car" or principal_point is None:
+        return None
+    if principal_point == "centre":
+        return None if image_size is None else np.asarray(image_size, dtype=float) / 2.0
+    try:
+        point = np.asarray(principal_point, dtype=float).reshape(2)
+    except (TypeError, ValueError):
+        raise FitError(f"principal point {principal_point!r} is not 'centre', 'car' or (u, v) pixels") from None
+    if not np.all(np.isfinite(point)):
+        raise FitError(f"principal point {principal_point!r} is not finite")
+    return point
 
 
 #: Most fits of a photo whose camera distance is told in mm but whose wheelbase is not.
@@ -221,9 +283,11 @@ DISTANCE_WHEELBASE_AGREEMENT = 0.005
 def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
                  prior_weight: float, refine: bool, deform: bool | None,
                  camera_distance_mm: float | str | None, wheelbase_mm: float | None,
-                 distance_wheelbase_mm: float | None, name: str) -> FitResult:
+                 distance_wheelbase_mm: float | None, name: str, scan: bool = True) -> FitResult:
     """:func:`fit_wireframe` on checked input; a distance in mm is read at
-    ``distance_wheelbase_mm`` (default the library's mean wheelbase)."""
+    ``distance_wheelbase_mm`` (default the library's mean wheelbase). A ``view`` that already
+    has a distance (a previous fit's) starts the refinement as it is, and ``scan`` False skips
+    the refinement's coarse scan."""
     model = prepared(library, method)
     idx = load_topology().keypoint_point_indices
 
@@ -240,11 +304,12 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
 
     free = DEFAULT_FREE if refine else ()
     if camera_distance_mm is not None:
-        view = _pinhole(view, camera_distance_mm, distance_wheelbase_mm, library)
+        if view.distance is None:
+            view = _pinhole(view, camera_distance_mm, distance_wheelbase_mm, library)
         if camera_distance_mm == "auto":
             free += ("perspective",)
     if free:
-        refined, sol = refine_view(solve_at, view, free=free)
+        refined, sol = refine_view(solve_at, view, free=free, scan=scan)
     else:
         refined, sol = view, solve_at(view)
     if sol.view is not None:
