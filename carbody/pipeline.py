@@ -250,6 +250,7 @@ def _read_inputs(image, keypoints):
 
 def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float | None = None, *,
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
+                principal_point: str | tuple[float, float] = "car",
                 name: str | None = None, library=None,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
@@ -264,6 +265,9 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
         camera_distance_mm: how far the camera stood from the car's centre (a pinhole camera:
             nearer parts look larger); "auto" (default: photos are taken from a few metres)
             finds it with the view; None assumes a distant (orthographic) camera.
+        principal_point: where the camera's optical axis meets the photo: "car" (pointed at
+            the car, or a photo cropped around it) or "centre" (an uncropped photo: a car off
+            its centre is then turned to; see :func:`carbody.fit.fit_wireframe`).
         name: the car's name in the STEP files (default: the photo's file stem).
         library: a :class:`carbody.library.Library` (default the shipped one).
         on_stage: called with each stage's name as it starts (progress display).
@@ -301,7 +305,8 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
 
     fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                         image_size=(w, h), wheelbase_mm=wheelbase_mm,
-                        camera_distance_mm=camera_distance_mm, name=name)
+                        camera_distance_mm=camera_distance_mm, principal_point=principal_point,
+                        name=name)
     timings["fit"] = time.perf_counter() - start
 
     start = stage("surfaces")

@@ -12,6 +12,12 @@ DISTANCE_HELP = ("how far the camera stood from the car's centre, mm (a photo fr
                  "camera (SPEC's)")
 
 
+PRINCIPAL_HELP = ("where the camera's optical axis meets the photo: 'car' (the camera pointed at "
+                  "the car, or the photo cropped around it; default) or 'centre' (an uncropped "
+                  "photo with the car off its centre: the fit corrects the obliquity; best with "
+                  "--distance MM)")
+
+
 def parse_distance(text: str | None) -> float | str | None:
     """``--distance``: None or "orthographic" (orthographic), "auto" or a positive number of mm."""
     from carbody.errors import FitError
@@ -52,11 +58,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "Gaussian around the library mean; paper: the paper's plain ΣH=1, 0≤H≤1")
     p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
                    help=DISTANCE_HELP + "; default auto")
-    p.add_argument("--principal-point", default="car", choices=("car", "centre"),
-                   help="where the camera's optical axis meets the photo: 'car' (the camera "
-                        "pointed at the car, or the photo cropped around it; default) or "
-                        "'centre' (an uncropped photo with the car off its centre: the fit "
-                        "corrects the obliquity; best with --distance MM)")
+    p.add_argument("--principal-point", default="car", choices=("car", "centre"), help=PRINCIPAL_HELP)
     p.add_argument("--no-refine", action="store_true",
                    help="keep the given view as it is (an 'auto' distance is still found)")
     p.add_argument("--no-deform", action="store_true",
