@@ -250,7 +250,7 @@ def _read_inputs(image, keypoints):
 
 def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float | None = None, *,
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
-                principal_point: str | tuple[float, float] = "car",
+                principal_point: str | tuple[float, float] = "car", focal_35mm: float | None = None,
                 name: str | None = None, library=None,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
@@ -268,6 +268,9 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
         principal_point: where the camera's optical axis meets the photo: "car" (pointed at
             the car, or a photo cropped around it) or "centre" (an uncropped photo: a car off
             its centre is then turned to; see :func:`carbody.fit.fit_wireframe`).
+        focal_35mm: the camera's 35 mm-equivalent focal length, mm; default the photo's EXIF
+            when it has one and is not cropped (:mod:`carbody.fit.focal`). With a distance
+            "auto" the distance then follows from the car's size in the photo.
         name: the car's name in the STEP files (default: the photo's file stem).
         library: a :class:`carbody.library.Library` (default the shipped one).
         on_stage: called with each stage's name as it starts (progress display).
@@ -303,10 +306,13 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     start = stage("fit")
     from carbody.camera import check_azimuth
 
+    from carbody.fit.focal import focal_length_px
+
+    focal, _ = focal_length_px(image_path if image_path else "", (w, h), focal_35mm)
     fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                         image_size=(w, h), wheelbase_mm=wheelbase_mm,
                         camera_distance_mm=camera_distance_mm, principal_point=principal_point,
-                        name=name)
+                        focal_px=focal, name=name)
     timings["fit"] = time.perf_counter() - start
 
     start = stage("surfaces")

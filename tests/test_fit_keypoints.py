@@ -128,3 +128,25 @@ def _swap(name):
     if name.endswith("_right"):
         return name.removesuffix("_right")
     return name + "_right" if name in off_plane else name
+
+
+def test_focal_length_from_35mm_equivalent_or_exif(tmp_path):
+    """A phone photo's EXIF gives the focal length unless the photo was cropped since."""
+    from PIL import Image
+
+    from carbody.errors import FitError
+    from carbody.fit.focal import FILM_DIAGONAL_MM, focal_length_px
+
+    def photo(name, size, exif_size):
+        exif = Image.Exif()
+        ifd = exif.get_ifd(0x8769)
+        ifd[0xA405], ifd[0xA002], ifd[0xA003] = 26, *exif_size
+        Image.new("RGB", size).save(tmp_path / name, exif=exif)
+        return tmp_path / name
+
+    f, source = focal_length_px(photo("a.jpg", (400, 300), (400, 300)), (400, 300), None)
+    assert f == pytest.approx(26 * 500 / FILM_DIAGONAL_MM) and "EXIF" in source
+    assert focal_length_px(photo("b.jpg", (400, 300), (800, 600)), (400, 300), None) == (None, "")
+    assert focal_length_px(tmp_path / "missing.png", (400, 300), 50.0)[0] == pytest.approx(50 * 500 / FILM_DIAGONAL_MM)
+    with pytest.raises(FitError, match="focal length"):
+        focal_length_px(tmp_path / "missing.png", (400, 300), -1.0)

@@ -18,6 +18,10 @@ PRINCIPAL_HELP = ("where the camera's optical axis meets the photo: 'car' (the c
                   "--distance MM)")
 
 
+FOCAL_HELP = ("the camera's focal length, 35 mm-equivalent mm (a phone's main camera: about 26); "
+              "with --distance auto the distance then follows from the car's size in the photo. "
+              "Default: the photo's EXIF, when it has one and is not cropped")
+
 def parse_distance(text: str | None) -> float | str | None:
     """``--distance``: None or "orthographic" (orthographic), "auto" or a positive number of mm."""
     from carbody.errors import FitError
@@ -59,6 +63,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
                    help=DISTANCE_HELP + "; default auto")
     p.add_argument("--principal-point", default="car", choices=("car", "centre"), help=PRINCIPAL_HELP)
+    p.add_argument("--focal-35mm", type=float, default=None, metavar="MM", help=FOCAL_HELP)
     p.add_argument("--no-refine", action="store_true",
                    help="keep the given view as it is (an 'auto' distance is still found)")
     p.add_argument("--no-deform", action="store_true",
@@ -96,6 +101,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
     from carbody.fit.report import build_report, draw_error_chart, write_json
+    from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
     from carbody.view.predict import read_image
@@ -114,10 +120,12 @@ def run_fit(args: argparse.Namespace) -> int:
     for out in (args.output, args.overlay, args.report):
         if out and not Path(out).resolve().parent.is_dir():
             raise FitError(f"{out}: its folder does not exist")
+    focal, focal_source = focal_length_px(args.image, (w, h), args.focal_35mm)
     result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                            method=args.method, refine=not args.no_refine,
                            deform=False if args.no_deform else None,
                            camera_distance_mm=distance, principal_point=args.principal_point,
+                           focal_px=focal,
                            name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
     report = build_report(result, truth) if (args.report or truth is not None) else None
@@ -134,6 +142,8 @@ def run_fit(args: argparse.Namespace) -> int:
     v = result.view
     camera = ("orthographic camera" if result.camera_distance_mm is None
               else f"camera {result.camera_distance_mm:.0f} mm away")
+    if focal is not None:
+        camera += f", focal length {focal:.0f} px ({focal_source})"
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm -> {args.output}")

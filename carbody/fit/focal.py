@@ -1,0 +1,36 @@
+"""A photo's focal length in pixels: from a 35 mm-equivalent focal length, or the photo's EXIF.
+
+With it a pinhole fit needs no perspective cue to find the camera's distance: the car's size in
+the photo and the focal length give it (:func:`carbody.fit.fit_wireframe`, ``focal_px``).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+#: Diagonal of the 35 mm film frame the equivalent focal length refers to, mm.
+FILM_DIAGONAL_MM = 43.27
+
+
+def focal_length_px(image: str | Path, size: tuple[int, int], focal_35mm: float | None) -> tuple[float | None, str]:
+    """The focal length in pixels from a 35 mm-equivalent one, else from the photo's EXIF
+    (``FocalLengthIn35mmFilm``, used only when the EXIF image size is the photo's: a cropped or
+    resized photo's EXIF no longer fits it). Returns (pixels or None, where it came from)."""
+    from carbody.errors import FitError
+
+    diagonal = math.hypot(*size)
+    if focal_35mm is not None:
+        if not (math.isfinite(focal_35mm) and 5.0 <= focal_35mm <= 2000.0):
+            raise FitError(f"focal length {focal_35mm!r} mm (35 mm equivalent) is not a lens's (5–2000 mm)")
+        return focal_35mm * diagonal / FILM_DIAGONAL_MM, "given"
+    try:
+        from PIL import Image
+
+        with Image.open(image) as im:
+            exif = im.getexif().get_ifd(0x8769)
+    except Exception:  # no readable EXIF: the fit finds the distance from perspective
+        return None, ""
+    f35, width, height = exif.get(0xA405), exif.get(0xA002), exif.get(0xA003)
+    if not f35 or (width, height) != tuple(size):
+        return None, ""
+    return float(f35) * diagonal / FILM_DIAGONAL_MM, f"EXIF {float(f35):g} mm (35 mm equivalent)"
