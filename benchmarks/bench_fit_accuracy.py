@@ -34,7 +34,8 @@ OFFSET_DEG = 10.0
 
 def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, elevation: float = 0.0,
                    distance: float | None = None, noise_px: float = NOISE_PX, off_centre_deg: float = 0.0):
-    """Keypoints of a normalised (280, 3) car seen at a view: ({name: (u, v)}, (width, height)).
+    """Keypoints of a normalised (280, 3) car seen at a view: ({name: (u, v)}, (width, height),
+    the pinhole camera's focal length in pixels or None).
 
     Args:
         distance: None for SPEC's orthographic camera (the car centred on a 1000 px wide image,
@@ -58,6 +59,7 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
 
         def camera(points: np.ndarray) -> np.ndarray:
             return offset + scale * project(points, view)
+        focal = None
     else:
         d, r, w = view_rotation(view)
         eye = centre + distance * d
@@ -81,7 +83,7 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
     slots = visible_slots(eye_view, truth)
     pts = np.array([truth[s.point_index] * s.sign for s in slots])
     uv = camera(pts) + rng.normal(0.0, noise_px, (len(slots), 2))
-    return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, size
+    return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, size, focal
 
 
 def run_template(args) -> list[dict]:
@@ -101,11 +103,11 @@ def run_template(args) -> list[dict]:
     rows = []
     for azimuth in angles:
         distance = None if distance_mm is None else distance_mm * 1000.0 / wb  # normalised units
-        kps, size = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px, off_centre)
+        kps, size, focal = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px, off_centre)
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
         for method, lam, offset, refine, deform, *extra in cases + [("mixture", l, 0.0, False, True) for l in lambdas]:
-            level, camera, principal = list(extra) + [False, None, "car"][len(extra):]
+            level, camera, principal, known_focal = list(extra) + [False, None, "car", None][len(extra):]
             given_elevation = 0.0 if level else elevation
             kw_camera = {}
             if camera == "told":
@@ -119,6 +121,7 @@ def run_template(args) -> list[dict]:
             res = fit_wireframe(kps, View(azimuth + offset, given_elevation), loo, image_size=size,
                                 wheelbase_mm=wb, method=method, refine=refine,
                                 deform=deform and method != "paper", principal_point=principal,
+                                focal_px=focal if known_focal else None,
                                 **kw, **kw_camera)
             dt = time.perf_counter() - t0
             err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
@@ -126,6 +129,7 @@ def run_template(args) -> list[dict]:
                          "offset": offset, "refine": refine, "deform": deform and method != "paper",
                          "given_elevation": given_elevation, "elevation": elevation, "camera": camera,
                          "principal": principal, "off_centre_deg": off_centre,
+                         "focal_known": bool(known_focal),
                          "refined_distance_mm": None if res.view.distance is None
                          else res.view.distance * wb / 1000.0,
                          "k": len(kps),
@@ -156,6 +160,8 @@ def case_label(r: dict) -> str:
         lab += ", distance found by the fit"
     if r.get("principal") == "centre" and r.get("camera"):
         lab += ", axis through the photo's centre"
+    if r.get("focal_known"):
+        lab += ", focal length known"
     return lab
 
 
@@ -249,7 +255,9 @@ def main(argv=None) -> int:
                  ("mixture", None, 0.0, True, True, False, "auto"),
                  ("mixture", None, 0.0, True, True, False, "auto", "centre"),
                  ("mixture", None, OFFSET_DEG, True, True, True, "auto"),
-                 ("mixture", None, OFFSET_DEG, True, True, True, "auto", "centre")]
+                 ("mixture", None, OFFSET_DEG, True, True, True, "auto", "centre"),
+                 ("mixture", None, 0.0, True, True, False, "auto", "centre", "focal"),
+                 ("mixture", None, OFFSET_DEG, True, True, True, "auto", "centre", "focal")]
     if args.known_only:
         cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
@@ -263,7 +271,8 @@ def main(argv=None) -> int:
           f"{f', its axis {args.off_centre:g}° off the car' if args.off_centre else ''}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
-    found = [r for r in rows if r.get("camera") == "auto" and args.distance is not None]
+    found = [r for r in rows if r.get("camera") == "auto" and not r.get("focal_known")
+             and args.distance is not None]
     if found:
         d = np.array([np.inf if r["refined_distance_mm"] is None else r["refined_distance_mm"] for r in found])
         print(f"\nCamera distance found by the fit: median {np.median(d):.0f} mm for {args.distance:g} mm; "

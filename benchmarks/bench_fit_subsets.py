@@ -45,7 +45,7 @@ def run_template(args) -> list[dict]:
     rng = np.random.default_rng(2000 + t)
     rows = []
     for azimuth in angles:
-        kps, size = synthetic_view(truth, azimuth, rng, elevation)
+        kps, size, _ = synthetic_view(truth, azimuth, rng, elevation)
         names = sorted(kps)
         for k in SIZES:
             for draw in range(1 if k is None else draws):

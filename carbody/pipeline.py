@@ -269,8 +269,8 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
             the car, or a photo cropped around it) or "centre" (an uncropped photo: a car off
             its centre is then turned to; see :func:`carbody.fit.fit_wireframe`).
         focal_35mm: the camera's 35 mm-equivalent focal length, mm; default the photo's EXIF
-            when it has one and is not cropped (:mod:`carbody.fit.focal`). With a distance
-            "auto" the distance then follows from the car's size in the photo.
+            when it has one and is not cropped (:mod:`carbody.fit.focal`). The turn toward an
+            off-centre car (``principal_point="centre"``) uses it.
         name: the car's name in the STEP files (default: the photo's file stem).
         library: a :class:`carbody.library.Library` (default the shipped one).
         on_stage: called with each stage's name as it starts (progress display).

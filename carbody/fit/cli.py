@@ -18,9 +18,10 @@ PRINCIPAL_HELP = ("where the camera's optical axis meets the photo: 'car' (the c
                   "--distance MM)")
 
 
-FOCAL_HELP = ("the camera's focal length, 35 mm-equivalent mm (a phone's main camera: about 26); "
-              "with --distance auto the distance then follows from the car's size in the photo. "
+FOCAL_HELP = ("the camera's focal length, 35 mm-equivalent mm (a phone's main camera: about 26): "
+              "with --principal-point centre the camera turns to an off-centre car by it. "
               "Default: the photo's EXIF, when it has one and is not cropped")
+
 
 def parse_distance(text: str | None) -> float | str | None:
     """``--distance``: None or "orthographic" (orthographic), "auto" or a positive number of mm."""

@@ -1,7 +1,8 @@
 """A photo's focal length in pixels: from a 35 mm-equivalent focal length, or the photo's EXIF.
 
-With it a pinhole fit needs no perspective cue to find the camera's distance: the car's size in
-the photo and the focal length give it (:func:`carbody.fit.fit_wireframe`, ``focal_px``).
+A fit whose camera turns toward a car off the photo's centre uses it for the turn's angle
+(:func:`carbody.fit.fit_wireframe`, ``focal_px``); without it the fit estimates the focal length
+from the distance it finds, which such a car misleads.
 """
 from __future__ import annotations
 

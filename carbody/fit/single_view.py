@@ -14,7 +14,7 @@ from carbody.errors import FitError
 from carbody.camera import View, apply_homography, look_at_homography, project
 from carbody.fit.deform import DeformationField
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
-from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, PERSPECTIVE_RANGE, refine_view
+from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, KeypointBasis, MixSolution,
                                ShapeModel, car_centre, solve_gauss, solve_simplex)
 from carbody.library import Library
@@ -189,9 +189,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             again. Reliable with the distance told; with ``"auto"`` a car far off the axis
             can pass for a closer camera (BENCHMARKS.md). Orthographic fits ignore it.
         focal_px: the camera's focal length in pixels, if known (a photo's 35 mm-equivalent
-            focal length × its diagonal in pixels / 43.3 mm). With ``camera_distance_mm="auto"``
-            the distance then follows from the car's size in the photo instead of from its
-            perspective, and the camera turns to an off-centre car by it.
+            focal length × its diagonal in pixels / 43.3 mm, :mod:`carbody.fit.focal`): the
+            turn toward an off-centre car then uses it instead of the fit's own estimate, which
+            a car far off the axis misleads when the distance is found too.
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -231,35 +231,20 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             if abs(result.wheelbase_mm / read_at - 1.0) < DISTANCE_WHEELBASE_AGREEMENT:
                 break
             read_at = result.wheelbase_mm
-    from_focal = focal_px is not None and camera_distance_mm == "auto"
-    if not from_focal and (principal is None or result.view.distance is None):
+    if principal is None or result.view.distance is None:
         return result
-    # Turn the camera to look at the car's centre, and (with a known focal length) set the
-    # distance at which the car has its size in the photo; refit until both settle.
+    # Turn the camera to look at the car's centre (by the known focal length, else the fit's
+    # own: f = s·D) and refit, until the turn settles.
     looking, to_turned = np.array([0.0, 0.0, 1.0]), np.eye(3)  # where the camera looks, its frame
     for _ in range(PRINCIPAL_PASSES):
-        solution, current = result.solution, result.view
-        ortho = current.distance is None  # found so far; the focal length says how far
-        aim = car_centre(solution.shape) if ortho else current.aim
-        aim_px = result.project_points(np.asarray(aim) * result.mm_per_unit)
-        focal = focal_px if focal_px is not None else solution.scale * current.distance
-        distance = current.distance
-        if from_focal:  # no nearer than the refinement would go (a wheelbase from the centre)
-            distance = max(focal / solution.scale, PERSPECTIVE_LENGTH / PERSPECTIVE_RANGE[1])
-        turn_to = looking
-        if principal is not None:
-            turn_to = np.append((aim_px - principal) / focal, 1.0)
-            turn_to /= np.linalg.norm(turn_to)
-        turned = np.degrees(np.arccos(min(1.0, float(turn_to @ looking)))) >= PRINCIPAL_TOLERANCE_DEG
-        moved = ortho or abs(distance / current.distance - 1.0) >= FOCAL_DISTANCE_AGREEMENT
-        if not (turned or moved):
-            break
-        if turned:
-            looking, to_turned = turn_to, look_at_homography(aim_px, principal, focal)
-        start = View(current.azimuth, current.elevation, current.roll, distance, aim)
-        told = camera_distance_mm if not from_focal else distance * result.mm_per_unit
-        result = _fit_checked(**{**fit, "uv": apply_homography(to_turned, uv), "view": start,
-                                 "camera_distance_mm": told},
+        aim_px = result.project_points(np.asarray(result.view.aim) * result.mm_per_unit)
+        focal = focal_px if focal_px is not None else result.solution.scale * result.view.distance
+        to_car = np.append((aim_px - principal) / focal, 1.0)
+        to_car /= np.linalg.norm(to_car)
+        if np.degrees(np.arccos(min(1.0, float(to_car @ looking)))) < PRINCIPAL_TOLERANCE_DEG:
+            break  # the camera already looks at the car
+        looking, to_turned = to_car, look_at_homography(aim_px, principal, focal)
+        result = _fit_checked(**{**fit, "uv": apply_homography(to_turned, uv), "view": result.view},
                               distance_wheelbase_mm=result.wheelbase_mm, scan=False)
         _in_photo(result, to_turned, uv, view)
     return result
@@ -271,11 +256,7 @@ def _in_photo(result: FitResult, to_turned: np.ndarray, uv: np.ndarray, given: V
     result.solution.residual_px = np.linalg.norm(result.reprojected() - uv, axis=1)
 
 
-#: With a known focal length, the camera distance has settled when it moves less than this.
-FOCAL_DISTANCE_AGREEMENT = 0.005
-
-#: Refits with the camera turned toward an off-centre car, or at the distance a known focal
-#: length gives (each from the previous one's aim and scale).
+#: Refits with the camera turned toward an off-centre car (each from the previous one's aim).
 PRINCIPAL_PASSES = 4
 
 #: The camera looks at the car when the direction to the car's centre moves less than this,
