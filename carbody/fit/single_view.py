@@ -219,15 +219,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     fit = dict(slots=slots, uv=uv, view=view, library=library, method=method,
                prior_weight=prior_weight, refine=refine, deform=deform,
                camera_distance_mm=camera_distance_mm, wheelbase_mm=wheelbase_mm, name=name)
-    first = fit
     if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
-        result = _fit_checked(**first, distance_wheelbase_mm=wheelbase_mm)
+        result = _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
     else:
         # A distance told in mm is read in wheelbases: at the car's own, which the fit gives; a
         # pass or two more agree to DISTANCE_WHEELBASE_AGREEMENT.
         read_at = float(np.mean(library.template_wheelbase_mm))
         for _ in range(DISTANCE_PASSES):
-            result = _fit_checked(**first, distance_wheelbase_mm=read_at)
+            result = _fit_checked(**fit, distance_wheelbase_mm=read_at)
             if abs(result.wheelbase_mm / read_at - 1.0) < DISTANCE_WHEELBASE_AGREEMENT:
                 break
             read_at = result.wheelbase_mm
