@@ -86,19 +86,25 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
     return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, size, focal
 
 
-def run_template(args) -> list[dict]:
-    t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre = args
-    from carbody.fit.single_view import fit_wireframe
+def left_out(t: int):
+    """Template t left out: (its name, the library without it, its normalised (280, 3) points,
+    its wheelbase mm, the (35,) keypoint rows)."""
     from carbody.library import load_library
     from carbody.topology import load_topology
 
     lib = load_library()
-    idx = load_topology().keypoint_point_indices
     name = lib.template_names[t]
-    loo = lib.without(name)
     j = np.flatnonzero((lib.template_index == t) & np.all(lib.factors == 1.0, axis=1))[0]
-    truth = lib.S[:, j].reshape(-1, 3)
-    wb = float(lib.template_wheelbase_mm[t])
+    return (name, lib.without(name), lib.S[:, j].reshape(-1, 3), float(lib.template_wheelbase_mm[t]),
+            load_topology().keypoint_point_indices)
+
+
+def run_template(args) -> list[dict]:
+    t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre = args
+    from carbody.fit.single_view import fit_wireframe
+    from carbody.topology import load_topology
+
+    name, loo, truth, wb, idx = left_out(t)
     rng = np.random.default_rng(1000 + t)
     rows = []
     for azimuth in angles:

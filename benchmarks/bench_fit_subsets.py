@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_fit_accuracy import synthetic_view  # noqa: E402
+from bench_fit_accuracy import left_out, synthetic_view  # noqa: E402
 
 ANGLES = (30, 60, 90, 150)
 SIZES = (5, 8, 12, 17, None)  # None: every visible keypoint
@@ -32,16 +32,8 @@ def run_template(args) -> list[dict]:
     from carbody.camera import View
     from carbody.errors import KeypointError
     from carbody.fit.single_view import fit_wireframe
-    from carbody.library import load_library
-    from carbody.topology import load_topology
 
-    lib = load_library()
-    idx = load_topology().keypoint_point_indices
-    name = lib.template_names[t]
-    loo = lib.without(name)
-    j = np.flatnonzero((lib.template_index == t) & np.all(lib.factors == 1.0, axis=1))[0]
-    truth = lib.S[:, j].reshape(-1, 3)
-    wb = float(lib.template_wheelbase_mm[t])
+    name, loo, truth, wb, idx = left_out(t)
     rng = np.random.default_rng(2000 + t)
     rows = []
     for azimuth in angles:

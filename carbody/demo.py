@@ -19,9 +19,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 
 def _demo(args) -> int:
+    from carbody.cli import build_parser
     from carbody.reconstruct_cli import run_reconstruct
 
-    ns = argparse.Namespace(image=EXAMPLES / "car.png", keypoints=EXAMPLES / "car_keypoints.json",
-                            view=args.view, wheelbase=None, truth=str(EXAMPLES / "car_truth.step"),
-                            name="carbody example crossover", out=args.out)
-    return run_reconstruct(ns)
+    argv = ["reconstruct", str(EXAMPLES / "car.png"), "--keypoints", str(EXAMPLES / "car_keypoints.json"),
+            "--truth", str(EXAMPLES / "car_truth.step"), "--name", "carbody example crossover",
+            "--out", str(args.out)] + ([] if args.view is None else ["--view", str(args.view)])
+    return run_reconstruct(build_parser().parse_args(argv))  # reconstruct's own defaults

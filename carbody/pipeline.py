@@ -305,10 +305,9 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
 
     start = stage("fit")
     from carbody.camera import check_azimuth
-
     from carbody.fit.focal import focal_length_px
 
-    focal, _ = focal_length_px(image_path if image_path else "", (w, h), focal_35mm)
+    focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
     fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                         image_size=(w, h), wheelbase_mm=wheelbase_mm,
                         camera_distance_mm=camera_distance_mm, principal_point=principal_point,

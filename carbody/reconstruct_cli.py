@@ -7,7 +7,7 @@ from pathlib import Path
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
-    from carbody.fit.cli import DISTANCE_HELP, FOCAL_HELP, PRINCIPAL_HELP
+    from carbody.fit.cli import add_camera_arguments
 
     p = sub.add_parser("reconstruct", help="photo + keypoints -> wireframe and body STEP, pictures, report",
                        description="Run view (unless --view is given) -> fit -> surfaces and write "
@@ -20,10 +20,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="view azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side); "
                         "default: the shipped view classifier")
     p.add_argument("--wheelbase", type=float, default=None, help="the car's wheelbase in mm (default: fitted)")
-    p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
-                   help=DISTANCE_HELP + "; default auto")
-    p.add_argument("--principal-point", default="car", choices=("car", "centre"), help=PRINCIPAL_HELP)
-    p.add_argument("--focal-35mm", type=float, default=None, metavar="MM", help=FOCAL_HELP)
+    add_camera_arguments(p)
     p.add_argument("--truth", default=None, help="ground truth wireframe STEP or template name: adds 3D errors")
     p.add_argument("--name", default=None, help="the car's name in the STEP files (default: photo file stem)")
     p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
@@ -44,7 +41,7 @@ def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
     from carbody.fit.cli import parse_distance
     from carbody.pipeline import STAGES, prepare_output_dir, reconstruct
 
-    distance = parse_distance(getattr(args, "distance", "auto"))
+    distance = parse_distance(args.distance)
     prepare_output_dir(args.out)  # fail before the work, not after
     truth = load_truth(args.truth) if args.truth else None
     with tqdm(total=len(STAGES) + 1, desc="carbody", unit="stage", file=sys.stderr,
@@ -56,8 +53,8 @@ def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
 
         result = reconstruct(args.image, args.keypoints, args.view, args.wheelbase, name=args.name,
                              camera_distance_mm=distance,
-                             principal_point=getattr(args, "principal_point", "car"),
-                             focal_35mm=getattr(args, "focal_35mm", None), on_stage=on_stage)
+                             principal_point=args.principal_point, focal_35mm=args.focal_35mm,
+                             on_stage=on_stage)
         bar.update(1)
         bar.set_description("write")
         paths = result.write(args.out, truth)

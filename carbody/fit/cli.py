@@ -7,20 +7,22 @@ from pathlib import Path
 
 from carbody.fit.solve import METHODS
 
-DISTANCE_HELP = ("how far the camera stood from the car's centre, mm (a photo from a few metres "
-                 "shows nearer parts larger), 'auto' to find it, or 'orthographic' for a distant "
-                 "camera (SPEC's)")
-
-
-PRINCIPAL_HELP = ("where the camera's optical axis meets the photo: 'car' (the camera pointed at "
-                  "the car, or the photo cropped around it; default) or 'centre' (an uncropped "
-                  "photo with the car off its centre: the fit corrects the obliquity; best with "
-                  "--distance MM)")
-
-
-FOCAL_HELP = ("the camera's focal length, 35 mm-equivalent mm (a phone's main camera: about 26): "
-              "with --principal-point centre the camera turns to an off-centre car by it. "
-              "Default: the photo's EXIF, when it has one and is not cropped")
+def add_camera_arguments(p: argparse.ArgumentParser) -> None:
+    """The photo's camera options, shared by ``fit`` and ``reconstruct``."""
+    p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
+                   help="how far the camera stood from the car's centre, mm (a photo from a few "
+                        "metres shows nearer parts larger), 'auto' to find it (default), or "
+                        "'orthographic' for a distant camera (SPEC's)")
+    p.add_argument("--principal-point", default="car", choices=("car", "centre"),
+                   help="where the camera's optical axis meets the photo: 'car' (the camera "
+                        "pointed at the car, or the photo cropped around it; default) or 'centre' "
+                        "(an uncropped photo with the car off its centre: the fit corrects the "
+                        "obliquity; best with --distance MM)")
+    p.add_argument("--focal-35mm", type=float, default=None, metavar="MM",
+                   help="the camera's focal length, 35 mm-equivalent mm (a phone's main camera: "
+                        "about 26): with --principal-point centre the camera turns to an "
+                        "off-centre car by it. Default: the photo's EXIF, when it has one and is "
+                        "not cropped")
 
 
 def parse_distance(text: str | None) -> float | str | None:
@@ -61,10 +63,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", choices=METHODS, default=METHODS[0],
                    help="mixture: Gaussian shape prior around each template (default); gauss: one "
                         "Gaussian around the library mean; paper: the paper's plain ΣH=1, 0≤H≤1")
-    p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
-                   help=DISTANCE_HELP + "; default auto")
-    p.add_argument("--principal-point", default="car", choices=("car", "centre"), help=PRINCIPAL_HELP)
-    p.add_argument("--focal-35mm", type=float, default=None, metavar="MM", help=FOCAL_HELP)
+    add_camera_arguments(p)
     p.add_argument("--no-refine", action="store_true",
                    help="keep the given view as it is (an 'auto' distance is still found)")
     p.add_argument("--no-deform", action="store_true",

@@ -13,10 +13,12 @@ from pathlib import Path
 FILM_DIAGONAL_MM = 43.27
 
 
-def focal_length_px(image: str | Path, size: tuple[int, int], focal_35mm: float | None) -> tuple[float | None, str]:
+def focal_length_px(image: str | Path | None, size: tuple[int, int],
+                    focal_35mm: float | None) -> tuple[float | None, str]:
     """The focal length in pixels from a 35 mm-equivalent one, else from the photo's EXIF
     (``FocalLengthIn35mmFilm``, used only when the EXIF image size is the photo's: a cropped or
-    resized photo's EXIF no longer fits it). Returns (pixels or None, where it came from)."""
+    resized photo's EXIF no longer fits it; ``image`` None: no file to read). Returns (pixels or
+    None, where it came from)."""
     from carbody.errors import FitError
 
     diagonal = math.hypot(*size)
@@ -24,6 +26,8 @@ def focal_length_px(image: str | Path, size: tuple[int, int], focal_35mm: float 
         if not (math.isfinite(focal_35mm) and 5.0 <= focal_35mm <= 2000.0):
             raise FitError(f"focal length {focal_35mm!r} mm (35 mm equivalent) is not a lens's (5–2000 mm)")
         return focal_35mm * diagonal / FILM_DIAGONAL_MM, "given"
+    if image is None:
+        return None, ""
     try:
         from PIL import Image
 
