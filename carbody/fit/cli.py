@@ -17,7 +17,7 @@ def add_camera_arguments(p: argparse.ArgumentParser) -> None:
                    help="where the camera's optical axis meets the photo: 'car' (the camera "
                         "pointed at the car, or the photo cropped around it; default) or 'centre' "
                         "(an uncropped photo with the car off its centre: the fit corrects the "
-                        "obliquity; best with --distance MM)")
+                        "obliquity; fastest with --distance MM or --focal-35mm)")
     p.add_argument("--focal-35mm", type=float, default=None, metavar="MM",
                    help="the camera's focal length, 35 mm-equivalent mm (a phone's main camera: "
                         "about 26): with --principal-point centre the camera turns to an "

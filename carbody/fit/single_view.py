@@ -44,8 +44,15 @@ def prepared_field(library: Library) -> DeformationField:
     """The photo-matching deformation field around the library's mean model, built once."""
     key = (id(library.S), library.S.shape, "field")
     if key not in _PREPARED:
-        mean = library.S.mean(axis=1, dtype=np.float64)
-        _PREPARED[key] = (library.S, DeformationField.around(mean, load_topology()))
+        _PREPARED[key] = (library.S, DeformationField.around(library_mean(library), load_topology()))
+    return _PREPARED[key][1]
+
+
+def library_mean(library: Library) -> np.ndarray:
+    """(840,) float, the library's mean shape vector (normalised units), computed once."""
+    key = (id(library.S), library.S.shape, "mean")
+    if key not in _PREPARED:
+        _PREPARED[key] = (library.S, library.S.mean(axis=1, dtype=np.float64))
     return _PREPARED[key][1]
 
 
@@ -73,6 +80,7 @@ class FitResult:
         to_photo: (3, 3) homography from the fitted camera's pixels to the photo's, when the
             camera was turned to look at an off-centre car (see :func:`fit_wireframe`); the
             solution's scale and offset are in the turned camera's pixels.
+        focal_px: the focal length that turn used, pixels (the known one, or the fit's).
     """
 
     wireframe: Wireframe
@@ -86,6 +94,7 @@ class FitResult:
     library: Library = field(repr=False)
     deformation_mm: float = 0.0
     to_photo: np.ndarray | None = None
+    focal_px: float | None = None
 
     @property
     def mm_per_unit(self) -> float:
@@ -185,13 +194,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             it), ``"centre"`` (the image centre of an uncropped photo; needs ``image_size``)
             or (u, v) pixels. A car off the axis is seen obliquely by the image plane: the fit
             then turns the camera about its centre to look at the car
-            (:func:`~carbody.camera.look_at_homography`, focal length from the fit) and fits
-            again. Reliable with the distance told; with ``"auto"`` a car far off the axis
-            can pass for a closer camera (BENCHMARKS.md). Orthographic fits ignore it.
+            (:func:`~carbody.camera.look_at_homography`) and fits again. The turn needs the
+            focal length: ``focal_px``, else the fit's own (scale × distance) until it settles,
+            and with the distance ``"auto"`` as well (where the obliquity can pass for a nearer
+            camera) then the focal length whose turned fit has the best evidence, a 1-D search
+            of about ten refits (~1–2 s; BENCHMARKS.md). Orthographic fits ignore it.
         focal_px: the camera's focal length in pixels, if known (a photo's 35 mm-equivalent
             focal length × its diagonal in pixels / 43.3 mm, :mod:`carbody.fit.focal`): the
-            turn toward an off-centre car then uses it instead of the fit's own estimate, which
-            a car far off the axis misleads when the distance is found too.
+            turn toward an off-centre car then uses it, with no search.
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -216,9 +226,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     principal = _principal_point(principal_point, image_size)
     if focal_px is not None and not (np.isfinite(focal_px) and focal_px > 0):
         raise FitError(f"focal length {focal_px!r} px is not a positive number")
+    # Passes that may be refitted skip the deformation; the fit kept gets it (_deformed) at the end.
     fit = dict(slots=slots, uv=uv, view=view, library=library, method=method,
-               prior_weight=prior_weight, refine=refine, deform=deform,
-               camera_distance_mm=camera_distance_mm, wheelbase_mm=wheelbase_mm, name=name)
+               prior_weight=prior_weight, refine=refine, camera_distance_mm=camera_distance_mm,
+               wheelbase_mm=wheelbase_mm, name=name)
+    if (method != "paper") if deform is None else deform:
+        fitted_uv = uv  # the marks in the kept fit's camera (a turned camera's, below)
+    else:
+        fitted_uv = None
     if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
         result = _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
     else:
@@ -231,11 +246,28 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                 break
             read_at = result.wheelbase_mm
     if principal is None or result.view.distance is None:
-        return result
-    # Turn the camera to look at the car's centre (by the known focal length, else the fit's
-    # own: f = s·D) and refit, until the turn settles.
-    looking, to_turned = np.array([0.0, 0.0, 1.0]), np.eye(3)  # where the camera looks, its frame
-    for _ in range(PRINCIPAL_PASSES):
+        return result if fitted_uv is None else _deformed(result, fitted_uv)
+    # Turn the camera to look at the car's centre and refit: by the known focal length, else the
+    # fit's own (f = s·D) until the turn settles, then, when the distance is found too, the focal
+    # length whose fit has the best evidence (an oblique image plane passes for a nearer camera,
+    # and the turn by that camera's focal length can settle far off).
+    turn = dict(fit=fit, uv=uv, principal=principal, given=view, deform=fitted_uv is not None)
+    if focal_px is not None:
+        result, fitted_uv = _looking_at_car(result, focal_px, **turn)
+    else:
+        result, fitted_uv = _looking_at_car(result, None, **turn)
+        if camera_distance_mm == "auto" and result.focal_px is not None:
+            result, fitted_uv = _looking_at_car(result, _best_focal(result, turn), **turn)
+    return result if fitted_uv is None else _deformed(result, fitted_uv)
+
+
+def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
+                    principal: np.ndarray, given: View, deform: bool, passes: int | None = None):
+    """Refit ``result`` (a pinhole fit made as if the camera looked at the car) with the camera
+    turned about its centre to look at the car: (the fit, its marks in the turned camera or None
+    when there is no deformation to come). ``focal_px`` None: the fit's own, f = s·D."""
+    looking, fitted_uv = np.array([0.0, 0.0, 1.0]), uv if deform else None
+    for _ in range(passes or PRINCIPAL_PASSES):
         aim_px = result.project_points(np.asarray(result.view.aim) * result.mm_per_unit)
         focal = focal_px if focal_px is not None else result.solution.scale * result.view.distance
         to_car = np.append((aim_px - principal) / focal, 1.0)
@@ -243,16 +275,67 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         if np.degrees(np.arccos(min(1.0, float(to_car @ looking)))) < PRINCIPAL_TOLERANCE_DEG:
             break  # the camera already looks at the car
         looking, to_turned = to_car, look_at_homography(aim_px, principal, focal)
-        result = _fit_checked(**{**fit, "uv": apply_homography(to_turned, uv), "view": result.view},
+        turned_uv = apply_homography(to_turned, uv)
+        result = _fit_checked(**{**fit, "uv": turned_uv, "view": result.view},
                               distance_wheelbase_mm=result.wheelbase_mm, scan=False)
-        _in_photo(result, to_turned, uv, view)
-    return result
+        fitted_uv = turned_uv if deform else None
+        _in_photo(result, to_turned, uv, given)
+        result.focal_px = focal
+    return result, fitted_uv
+
+
+def _best_focal(settled: FitResult, turn: dict) -> float:
+    """The focal length (px) whose turn toward the car fits the marks with the best evidence:
+    searched on a log scale within FOCAL_SEARCH_RANGE of the one ``settled`` (a turned fit)
+    used, each candidate one turn and refit from ``settled``'s view."""
+    from scipy.optimize import minimize_scalar
+
+    once = {**turn, "deform": False, "passes": 1}
+    scores = {}
+
+    def score(log_f: float) -> float:
+        scores[log_f] = _score(_looking_at_car(settled, float(np.exp(log_f)), **once)[0])
+        return scores[log_f]
+
+    centre, span = float(np.log(settled.focal_px)), float(np.log(FOCAL_SEARCH_RANGE))
+    minimize_scalar(score, bounds=(centre - span, centre + span), method="bounded",
+                    options={"xatol": FOCAL_SEARCH_TOLERANCE})
+    best = min(scores, key=scores.get)
+    return float(np.exp(best if scores[best] < _score(settled) else centre))
+
+
+def _score(result: FitResult) -> float:
+    """What the view refinement minimises: the evidence, else (``"paper"``) the cost."""
+    sol = result.solution
+    return sol.evidence if sol.evidence is not None else sol.cost
+
+
+#: With the focal length unknown, the turn toward an off-centre car tries focal lengths up to
+#: this factor either side of the settled turn's …
+FOCAL_SEARCH_RANGE = 3.0
+
+#: … to this precision in log f (5 %).
+FOCAL_SEARCH_TOLERANCE = 0.05
 
 
 def _in_photo(result: FitResult, to_turned: np.ndarray, uv: np.ndarray, given: View) -> None:
     """Point a fit made in a turned camera's pixels back at the photo's marks."""
     result.to_photo, result.uv, result.given_view = np.linalg.inv(to_turned), uv, given
     result.solution.residual_px = np.linalg.norm(result.reprojected() - uv, axis=1)
+
+
+def _deformed(result: FitResult, fitted_uv: np.ndarray) -> FitResult:
+    """The fit with its mix moved onto the marks by the photo-matching deformation
+    (:mod:`carbody.fit.deform`); ``fitted_uv`` are the marks in the fit's own camera."""
+    sol, idx = result.solution, load_topology().keypoint_point_indices
+    before = sol.shape
+    sol.shape = prepared_field(result.library).fit_to_keypoints(before, idx, result.slots, fitted_uv,
+                                                                result.view, sol.scale, sol.offset)
+    moved = float(np.max(np.linalg.norm((sol.shape - before).reshape(-1, 3), axis=1)))
+    result.wireframe = Wireframe(result.wireframe.name, sol.shape.reshape(-1, 3) * result.mm_per_unit)
+    result.deformation_mm = moved * result.mm_per_unit
+    sol.residual_px = np.linalg.norm(result.reprojected() - result.uv, axis=1)
+    return result
 
 
 #: Refits with the camera turned toward an off-centre car (each from the previous one's aim).
@@ -286,13 +369,13 @@ DISTANCE_WHEELBASE_AGREEMENT = 0.005
 
 
 def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
-                 prior_weight: float, refine: bool, deform: bool | None,
-                 camera_distance_mm: float | str | None, wheelbase_mm: float | None,
-                 distance_wheelbase_mm: float | None, name: str, scan: bool = True) -> FitResult:
-    """:func:`fit_wireframe` on checked input; a distance in mm is read at
-    ``distance_wheelbase_mm`` (default the library's mean wheelbase). A ``view`` that already
-    has a distance (a previous fit's) starts the refinement as it is, and ``scan`` False skips
-    the refinement's coarse scan."""
+                 prior_weight: float, refine: bool, camera_distance_mm: float | str | None,
+                 wheelbase_mm: float | None, distance_wheelbase_mm: float | None, name: str,
+                 scan: bool = True) -> FitResult:
+    """:func:`fit_wireframe` on checked input, without the deformation; a distance in mm is
+    read at ``distance_wheelbase_mm`` (default the library's mean wheelbase). A ``view`` that
+    already has a distance (a previous fit's) starts the refinement as it is, and ``scan``
+    False skips the refinement's coarse scan."""
     model = prepared(library, method)
     idx = load_topology().keypoint_point_indices
 
@@ -323,14 +406,6 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
                    refined.distance, refined.aim)
     if sol.shape is None:
         sol.shape = library.S[:, sol.support] @ sol.H[sol.support]
-    moved = 0.0
-    if (method != "paper") if deform is None else deform:
-        before = sol.shape
-        sol.shape = prepared_field(library).fit_to_keypoints(before, idx, slots, uv, refined,
-                                                              sol.scale, sol.offset)
-        keypoints = np.array([sol.shape.reshape(-1, 3)[s.point_index] * s.sign for s in slots])
-        sol.residual_px = np.linalg.norm(project(keypoints, refined, sol.scale, sol.offset) - uv, axis=1)
-        moved = float(np.max(np.linalg.norm((sol.shape - before).reshape(-1, 3), axis=1)))
     if wheelbase_mm is None:
         if sol.H is None:
             raise FitError("no wheelbase given and the mix's weights are unknown")
@@ -338,7 +413,7 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
     points = sol.shape.reshape(-1, 3) * (wheelbase_mm / NORMALISED_WHEELBASE)
     return FitResult(wireframe=Wireframe(name, points), view=refined, given_view=view, solution=sol,
                      slots=slots, uv=uv, wheelbase_mm=float(wheelbase_mm), method=method,
-                     library=library, deformation_mm=moved * wheelbase_mm / NORMALISED_WHEELBASE)
+                     library=library)
 
 
 #: Where ``camera_distance_mm="auto"`` starts: 2.5 wheelbases (≈ 7 m), a typical photo.
@@ -348,7 +423,7 @@ AUTO_START_WHEELBASES = 2.5
 def _pinhole(view: View, camera_distance_mm: float | str, wheelbase_mm: float | None,
              library: Library) -> View:
     """The given view as a pinhole camera aimed at the library mean's centre (normalised units)."""
-    mean = library.S.mean(axis=1, dtype=np.float64)
+    mean = library_mean(library)
     points = mean.reshape(-1, 3)
     aim = car_centre(mean)  # the solve moves it onto the fitted car
     if camera_distance_mm == "auto":
