@@ -256,7 +256,10 @@ def main(argv=None) -> int:
                  ("mixture", None, 0.0, True, True), ("mixture", None, 0.0, True, True, False, "auto"),
                  ("mixture", None, OFFSET_DEG, True, True, False, "auto"),
                  # as a photo comes: azimuth 10° off, elevation and distance unknown
-                 ("mixture", None, OFFSET_DEG, True, True, True, "auto")]
+                 ("mixture", None, OFFSET_DEG, True, True, True, "auto"),
+                 # the same with its EXIF focal length: the default then takes the axis through
+                 # the photo's centre (here, through the car's) and turns by that focal length
+                 ("mixture", None, OFFSET_DEG, True, True, True, "auto", "centre", "focal")]
     if args.distance is not None and args.off_centre:
         cases = [("mixture", None, 0.0, False, True, False, "told"),
                  ("mixture", None, 0.0, False, True, False, "told", "centre"),

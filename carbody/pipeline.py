@@ -122,7 +122,9 @@ class Reconstruction:
             f"view: {view['azimuth_deg']:.1f} deg azimuth, {view['elevation_deg']:.1f} deg elevation "
             f"({view['source']}{', classifier said %.0f deg' % view['classifier']['class_deg'] if 'classifier' in view else ''})",
             "camera: " + ("orthographic (far away)" if view["camera_distance_mm"] is None
-                          else f"{view['camera_distance_mm']:.0f} mm from the car's centre"),
+                          else f"{view['camera_distance_mm']:.0f} mm from the car's centre")
+            + (f", turned {fit['camera_turn_deg']:.1f} deg from the photo's axis to the car "
+               f"(focal length {fit['focal_length_px']:.0f} px)" if fit["camera_turn_deg"] else ""),
             f"keypoints: {fit['keypoints_annotated']}, reprojection residual mean "
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm",
@@ -250,7 +252,7 @@ def _read_inputs(image, keypoints):
 
 def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float | None = None, *,
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
-                principal_point: str | tuple[float, float] = "car", focal_35mm: float | None = None,
+                principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
                 name: str | None = None, library=None,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
@@ -266,11 +268,12 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
             nearer parts look larger); "auto" (default: photos are taken from a few metres)
             finds it with the view; None assumes a distant (orthographic) camera.
         principal_point: where the camera's optical axis meets the photo: "car" (pointed at
-            the car, or a photo cropped around it) or "centre" (an uncropped photo: a car off
-            its centre is then turned to; see :func:`carbody.fit.fit_wireframe`).
+            the car, or a photo cropped around it), "centre" (an uncropped photo: a car off
+            its centre is then turned to; see :func:`carbody.fit.fit_wireframe`), or "auto"
+            (default): "centre" when the focal length is known, else "car".
         focal_35mm: the camera's 35 mm-equivalent focal length, mm; default the photo's EXIF
             when it has one and is not cropped (:mod:`carbody.fit.focal`). The turn toward an
-            off-centre car (``principal_point="centre"``) uses it.
+            off-centre car uses it.
         name: the car's name in the STEP files (default: the photo's file stem).
         library: a :class:`carbody.library.Library` (default the shipped one).
         on_stage: called with each stage's name as it starts (progress display).

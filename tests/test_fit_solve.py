@@ -148,6 +148,14 @@ def test_car_off_the_photo_centre_is_turned_to(library, topology):
                           camera_distance_mm="auto", principal_point="centre", focal_px=900.0)
     assert np.linalg.norm(found.wireframe.control_points[kp] - truth[kp], axis=1).mean() < 10
     assert found.view.distance == pytest.approx(2200.0, rel=0.1)
+    # With the focal length known the default takes the axis through the photo's centre.
+    by_default = fit_wireframe(marks, View(30, 10), library, image_size=(2000, 1000), wheelbase_mm=1000.0,
+                               camera_distance_mm="auto", focal_px=900.0)
+    assert np.allclose(by_default.wireframe.control_points, found.wireframe.control_points)
+    assert by_default.camera_turn_deg == pytest.approx(15.0, abs=1.0)
+    unknown = fit_wireframe(marks, View(30, 10), library, image_size=(2000, 1000), wheelbase_mm=1000.0,
+                            refine=False, camera_distance_mm=2200.0)
+    assert unknown.to_photo is None and unknown.camera_turn_deg == 0.0  # no focal length: "car"
     assert turned.to_photo is not None and turned.solution.residual_px.mean() < 1.0
     assert np.allclose(turned.uv, uv)  # the marks as given, residuals in the photo's pixels
 

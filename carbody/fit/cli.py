@@ -13,16 +13,17 @@ def add_camera_arguments(p: argparse.ArgumentParser) -> None:
                    help="how far the camera stood from the car's centre, mm (a photo from a few "
                         "metres shows nearer parts larger), 'auto' to find it (default), or "
                         "'orthographic' for a distant camera (SPEC's)")
-    p.add_argument("--principal-point", default="car", choices=("car", "centre"),
+    p.add_argument("--principal-point", default="auto", choices=("auto", "car", "centre"),
                    help="where the camera's optical axis meets the photo: 'car' (the camera "
-                        "pointed at the car, or the photo cropped around it; default) or 'centre' "
-                        "(an uncropped photo with the car off its centre: the fit corrects the "
-                        "obliquity; fastest with --distance MM or --focal-35mm)")
+                        "pointed at the car, or the photo cropped around it), 'centre' (an "
+                        "uncropped photo with the car off its centre: the fit corrects the "
+                        "obliquity; fastest with --distance MM or a focal length), or 'auto' "
+                        "(default): 'centre' when the focal length is known, else 'car'")
     p.add_argument("--focal-35mm", type=float, default=None, metavar="MM",
                    help="the camera's focal length, 35 mm-equivalent mm (a phone's main camera: "
-                        "about 26): with --principal-point centre the camera turns to an "
-                        "off-centre car by it. Default: the photo's EXIF, when it has one and is "
-                        "not cropped")
+                        "about 26), for the uncropped photo: the camera turns to an off-centre "
+                        "car by it. Default: the photo's EXIF, when it has one and the photo is "
+                        "not cropped or resized")
 
 
 def parse_distance(text: str | None) -> float | str | None:
@@ -144,6 +145,9 @@ def run_fit(args: argparse.Namespace) -> int:
               else f"camera {result.camera_distance_mm:.0f} mm away")
     if focal is not None:
         camera += f", focal length {focal:.0f} px ({focal_source})"
+    if result.camera_turn_deg:
+        camera += (f", turned {result.camera_turn_deg:.1f}° from the photo's axis to the car"
+                   + (f" (focal length {result.focal_px:.0f} px found)" if focal is None else ""))
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm -> {args.output}")

@@ -49,6 +49,10 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "refined_view": result.view.as_dict(),
         "image_scale_px_per_mm": result.solution.scale / result.mm_per_unit,
         "camera_distance_mm": result.camera_distance_mm,
+        # a car off an uncropped photo's centre: the camera turned to it (scale and offset
+        # above are then the turned camera's)
+        "camera_turn_deg": result.camera_turn_deg,
+        "focal_length_px": result.focal_px,
         "image_offset_px": [float(v) for v in result.solution.offset],
         "wheelbase_mm": result.wheelbase_mm,
         "keypoints_annotated": len(result.slots),

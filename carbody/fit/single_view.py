@@ -81,6 +81,8 @@ class FitResult:
             camera was turned to look at an off-centre car (see :func:`fit_wireframe`); the
             solution's scale and offset are in the turned camera's pixels.
         focal_px: the focal length that turn used, pixels (the known one, or the fit's).
+        camera_turn_deg: how far that turn swung the camera from the photo's optical axis to
+            the car's centre, degrees (0: no turn).
     """
 
     wireframe: Wireframe
@@ -95,6 +97,7 @@ class FitResult:
     deformation_mm: float = 0.0
     to_photo: np.ndarray | None = None
     focal_px: float | None = None
+    camera_turn_deg: float = 0.0
 
     @property
     def mm_per_unit(self) -> float:
@@ -165,7 +168,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                   wheelbase_mm: float | None = None, method: str = METHODS[0],
                   prior_weight: float = DEFAULT_PRIOR_WEIGHT, refine: bool = True,
                   deform: bool | None = None, camera_distance_mm: float | str | None = None,
-                  principal_point: str | tuple[float, float] = "car", focal_px: float | None = None,
+                  principal_point: str | tuple[float, float] = "auto", focal_px: float | None = None,
                   name: str = "fitted car") -> FitResult:
     """Fit the car's 3D wireframe to keypoints marked on one photo.
 
@@ -190,9 +193,11 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             larger; without ``wheelbase_mm`` it is read at the fitted car's wheelbase);
             ``"auto"`` to find the distance (with the view, when it is refined).
         principal_point: where a pinhole camera's optical axis meets the photo: ``"car"``
-            (default: the camera pointed at the car's centre, or the photo cropped around
-            it), ``"centre"`` (the image centre of an uncropped photo; needs ``image_size``)
-            or (u, v) pixels. A car off the axis is seen obliquely by the image plane: the fit
+            (the camera pointed at the car's centre, or the photo cropped around it),
+            ``"centre"`` (the image centre of an uncropped photo; needs ``image_size``), (u, v)
+            pixels, or ``"auto"`` (default): ``"centre"`` when ``focal_px`` is known (a focal
+            length from EXIF or a 35 mm-equivalent one holds for the uncropped frame only),
+            else ``"car"`` (:func:`resolve_principal_point`). A car off the axis is seen obliquely by the image plane: the fit
             then turns the camera about its centre to look at the car
             (:func:`~carbody.camera.look_at_homography`) and fits again. The turn needs the
             focal length: ``focal_px``, else the fit's own (scale × distance) until it settles,
@@ -223,7 +228,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
         library = load_library()
     slots, uv = check_keypoints(keypoints, image_size, load_topology())
-    principal = _principal_point(principal_point, image_size)
+    principal = _principal_point(resolve_principal_point(principal_point, focal_px), image_size)
     if focal_px is not None and not (np.isfinite(focal_px) and focal_px > 0):
         raise FitError(f"focal length {focal_px!r} px is not a positive number")
     # Passes that may be refitted skip the deformation; the fit kept gets it (_deformed) at the end.
@@ -280,7 +285,7 @@ def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np
                               distance_wheelbase_mm=result.wheelbase_mm, scan=False)
         fitted_uv = turned_uv if deform else None
         _in_photo(result, to_turned, uv, given)
-        result.focal_px = focal
+        result.focal_px, result.camera_turn_deg = focal, float(np.degrees(np.arccos(looking[2])))
     return result, fitted_uv
 
 
@@ -291,6 +296,9 @@ def _best_focal(settled: FitResult, turn: dict) -> float:
     from scipy.optimize import minimize_scalar
 
     once = {**turn, "deform": False, "passes": 1}
+    import os
+    if os.environ.get("FIXVIEW"):
+        once["fit"] = {**turn["fit"], "refine": False}
     scores = {}
 
     def score(log_f: float) -> float:
@@ -346,6 +354,14 @@ PRINCIPAL_PASSES = 4
 PRINCIPAL_TOLERANCE_DEG = 0.25
 
 
+def resolve_principal_point(principal_point, focal_px: float | None):
+    """``"auto"`` → ``"centre"`` with a known focal length (the photo is its camera's whole
+    frame), else ``"car"``; anything else as given."""
+    if isinstance(principal_point, str) and principal_point == "auto":
+        return "centre" if focal_px is not None else "car"
+    return principal_point
+
+
 def _principal_point(principal_point, image_size) -> np.ndarray | None:
     """(2,) pixels where the optical axis meets the photo, or None (aimed at the car)."""
     if principal_point == "car" or principal_point is None:
@@ -355,7 +371,7 @@ def _principal_point(principal_point, image_size) -> np.ndarray | None:
     try:
         point = np.asarray(principal_point, dtype=float).reshape(2)
     except (TypeError, ValueError):
-        raise FitError(f"principal point {principal_point!r} is not 'centre', 'car' or (u, v) pixels") from None
+        raise FitError(f"principal point {principal_point!r} is not 'auto', 'centre', 'car' or (u, v) pixels") from None
     if not np.all(np.isfinite(point)):
         raise FitError(f"principal point {principal_point!r} is not finite")
     return point
