@@ -56,3 +56,24 @@ def run_cli(*args: str, check: bool = False) -> subprocess.CompletedProcess:
     if check and proc.returncode != 0:
         raise AssertionError(f"carbody {' '.join(args)} failed ({proc.returncode}):\n{proc.stderr}")
     return proc
+
+
+def off_centre_photo(truth, view, noise: float = 0.0, focal: float = 900.0):
+    """{name: [u, v]} of a normalised car photographed from 2200 units (≈ 6 m) by a pinhole
+    camera of focal length ``focal`` px whose axis, through the centre of a 2000 × 1000 px photo,
+    points 15° to the car's right of it (only what that camera sees)."""
+    import numpy as np
+
+    from carbody.camera import View, view_rotation
+    from carbody.fit.visibility import visible_slots
+
+    both = np.concatenate([truth, truth * [-1, 1, 1]])
+    centre = (both.min(axis=0) + both.max(axis=0)) / 2
+    d, r, w = view_rotation(view)
+    eye, turn = centre + 2200.0 * d, np.radians(15.0)
+    axis, right = -np.cos(turn) * d + np.sin(turn) * r, np.cos(turn) * r + np.sin(turn) * d
+    slots = visible_slots(View(view.azimuth, view.elevation, 0, 2200.0, tuple(centre)), truth)
+    q = np.array([truth[s.point_index] * s.sign for s in slots]) - eye
+    uv = np.array([1000.0, 500.0]) + focal * np.stack([q @ right, -(q @ w)], axis=1) / (q @ axis)[:, None]
+    uv += np.random.default_rng(0).normal(0.0, noise, uv.shape)
+    return {s.name: [float(u), float(v)] for s, (u, v) in zip(slots, uv)}

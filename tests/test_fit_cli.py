@@ -37,6 +37,35 @@ def photo(tmp_path_factory, library):
     return folder
 
 
+def test_fit_turns_to_a_car_off_a_camera_photo_s_centre(tmp_path, library):
+    """A JPEG straight from a camera (EXIF: 17 mm equivalent, its own size) with the car 15° off
+    its axis: the default principal point takes the axis through the photo's centre, and the
+    camera turns to the car by the EXIF focal length."""
+    from PIL import Image
+
+    from carbody.camera import View
+    from carbody.fit.focal import FILM_DIAGONAL_MM
+    from tests.conftest import off_centre_photo
+
+    focal = 17 * np.hypot(2000, 1000) / FILM_DIAGONAL_MM
+    t = library.template_names.index("Toyota Camry XV70")
+    j = int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
+    marks = off_centre_photo(library.points(j), View(30, 10), noise=1.0, focal=focal)
+    exif = Image.Exif()
+    ifd = exif.get_ifd(0x8769)
+    ifd[0xA405], ifd[0xA002], ifd[0xA003] = 17, 2000, 1000
+    Image.new("RGB", (2000, 1000), (200, 200, 200)).save(tmp_path / "car.jpg", exif=exif)
+    (tmp_path / "car.json").write_text(json.dumps({"image": "car.jpg", "keypoints": marks}))
+    proc = run_cli("fit", str(tmp_path / "car.jpg"), "--keypoints", str(tmp_path / "car.json"), "--view", "30",
+                   "--exclude-template", "Toyota Camry XV70", "-o", str(tmp_path / "car.step"),
+                   "--report", str(tmp_path / "r.json"), check=True)
+    assert "EXIF 17 mm" in proc.stdout and "from the photo's axis to the car" in proc.stdout
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["camera_turn_deg"] == pytest.approx(15.0, abs=1.5)
+    assert rep["focal_length_px"] == pytest.approx(focal)
+    assert rep["residual_px_mean"] < 3
+
+
 def test_fit_writes_step_overlay_and_report(photo):
     out = photo / "out"
     out.mkdir()

@@ -7,6 +7,7 @@ from carbody.fit.keypoints_io import keypoint_slots
 from carbody.fit.solve import KeypointBasis, nnls_active_set, solve_simplex
 from carbody.fit.single_view import fit_wireframe
 from carbody.fit.visibility import visible_slots
+from tests.conftest import off_centre_photo
 
 
 def _observe(truth, view, scale=0.4, offset=(520.0, 310.0), noise=0.0, seed=0):
@@ -107,30 +108,12 @@ def test_a_paper_sized_subset_of_keypoints_is_enough(library, topology):
     assert error(len(slots), 0) < 15
 
 
-def _off_centre_photo(truth, view, noise=0.0):
-    """{name: (u, v)} of a car photographed from 2200 units (≈ 6 m) by a pinhole camera of focal
-    length 900 px whose axis, through the centre of a 2000 × 1000 px photo, points 15° to the
-    car's right of it."""
-    from carbody.camera import view_rotation
-
-    both = np.concatenate([truth, truth * [-1, 1, 1]])
-    centre = (both.min(axis=0) + both.max(axis=0)) / 2
-    d, r, w = view_rotation(view)
-    eye, turn = centre + 2200.0 * d, np.radians(15.0)
-    axis, right = -np.cos(turn) * d + np.sin(turn) * r, np.cos(turn) * r + np.sin(turn) * d
-    slots = visible_slots(View(view.azimuth, view.elevation, 0, 2200.0, tuple(centre)), truth)
-    q = np.array([truth[s.point_index] * s.sign for s in slots]) - eye
-    uv = np.array([1000.0, 500.0]) + 900.0 * np.stack([q @ right, -(q @ w)], axis=1) / (q @ axis)[:, None]
-    uv += np.random.default_rng(0).normal(0.0, noise, uv.shape)
-    return {s.name: p for s, p in zip(slots, uv)}
-
-
 def test_car_off_the_photo_centre_is_turned_to(library, topology):
     """An uncropped photo from 2.2 wheelbases (≈ 6 m) whose optical axis points 15° beside the
     car: taking the camera to point at the car leaves the image plane's obliquity as a shape
     error; told the photo's centre, the fit turns the camera to the car and lands on it."""
     truth = library.points(_original(library, 3))
-    marks = _off_centre_photo(truth, View(30, 10))
+    marks = off_centre_photo(truth, View(30, 10))
     uv = np.array(list(marks.values()))
     kp = topology.keypoint_point_indices
 
@@ -166,7 +149,7 @@ def test_off_centre_car_with_unknown_focal_length_and_distance(library, topology
     obliquity read as perspective); the search over focal lengths by evidence finds the 900 px
     camera and the car."""
     _, loo, truth = _left_out(library, "Volkswagen Golf Mk7")
-    res = fit_wireframe(_off_centre_photo(truth, View(90, 10), noise=1.0), View(90, 10), loo,
+    res = fit_wireframe(off_centre_photo(truth, View(90, 10), noise=1.0), View(90, 10), loo,
                         image_size=(2000, 1000), wheelbase_mm=1000.0, camera_distance_mm="auto",
                         principal_point="centre")
     kp = topology.keypoint_point_indices
