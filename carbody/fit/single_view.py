@@ -197,9 +197,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             ``"centre"`` (the image centre of an uncropped photo; needs ``image_size``), (u, v)
             pixels, or ``"auto"`` (default): ``"centre"`` when ``focal_px`` is known (a focal
             length from EXIF or a 35 mm-equivalent one holds for the uncropped frame only),
-            else ``"car"`` (:func:`resolve_principal_point`). A car off the axis is seen obliquely by the image plane: the fit
-            then turns the camera about its centre to look at the car
-            (:func:`~carbody.camera.look_at_homography`) and fits again. The turn needs the
+            else ``"car"`` (:func:`resolve_principal_point`). A car off the axis is seen
+            obliquely by the image plane: the fit then turns the camera about its centre to
+            look at the car (:func:`~carbody.camera.look_at_homography`) and fits again. The turn needs the
             focal length: ``focal_px``, else the fit's own (scale × distance) until it settles,
             and with the distance ``"auto"`` as well (where the obliquity can pass for a nearer
             camera) then the focal length whose turned fit has the best evidence, a 1-D search
@@ -296,9 +296,6 @@ def _best_focal(settled: FitResult, turn: dict) -> float:
     from scipy.optimize import minimize_scalar
 
     once = {**turn, "deform": False, "passes": 1}
-    import os
-    if os.environ.get("FIXVIEW"):
-        once["fit"] = {**turn["fit"], "refine": False}
     scores = {}
 
     def score(log_f: float) -> float:
