@@ -77,3 +77,19 @@ def off_centre_photo(truth, view, noise: float = 0.0, focal: float = 900.0):
     uv = np.array([1000.0, 500.0]) + focal * np.stack([q @ right, -(q @ w)], axis=1) / (q @ axis)[:, None]
     uv += np.random.default_rng(0).normal(0.0, noise, uv.shape)
     return {s.name: [float(u), float(v)] for s, (u, v) in zip(slots, uv)}
+
+
+def camera_jpeg(path, size=(2000, 1000), focal_35mm: int = 17):
+    """A blank JPEG as a camera writes it: EXIF with its 35 mm-equivalent focal length and its
+    own pixel size (the photo is uncropped). Returns the focal length in pixels."""
+    import math
+
+    from PIL import Image
+
+    from carbody.fit.focal import FILM_DIAGONAL_MM
+
+    exif = Image.Exif()
+    ifd = exif.get_ifd(0x8769)
+    ifd[0xA405], ifd[0xA002], ifd[0xA003] = focal_35mm, *size
+    Image.new("RGB", size, (200, 200, 200)).save(path, exif=exif)
+    return focal_35mm * math.hypot(*size) / FILM_DIAGONAL_MM

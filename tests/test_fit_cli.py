@@ -41,20 +41,13 @@ def test_fit_turns_to_a_car_off_a_camera_photo_s_centre(tmp_path, library):
     """A JPEG straight from a camera (EXIF: 17 mm equivalent, its own size) with the car 15° off
     its axis: the default principal point takes the axis through the photo's centre, and the
     camera turns to the car by the EXIF focal length."""
-    from PIL import Image
-
     from carbody.camera import View
-    from carbody.fit.focal import FILM_DIAGONAL_MM
-    from tests.conftest import off_centre_photo
+    from tests.conftest import camera_jpeg, off_centre_photo
 
-    focal = 17 * np.hypot(2000, 1000) / FILM_DIAGONAL_MM
+    focal = camera_jpeg(tmp_path / "car.jpg", (2000, 1000), 17)
     t = library.template_names.index("Toyota Camry XV70")
     j = int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
     marks = off_centre_photo(library.points(j), View(30, 10), noise=1.0, focal=focal)
-    exif = Image.Exif()
-    ifd = exif.get_ifd(0x8769)
-    ifd[0xA405], ifd[0xA002], ifd[0xA003] = 17, 2000, 1000
-    Image.new("RGB", (2000, 1000), (200, 200, 200)).save(tmp_path / "car.jpg", exif=exif)
     (tmp_path / "car.json").write_text(json.dumps({"image": "car.jpg", "keypoints": marks}))
     proc = run_cli("fit", str(tmp_path / "car.jpg"), "--keypoints", str(tmp_path / "car.json"), "--view", "30",
                    "--exclude-template", "Toyota Camry XV70", "-o", str(tmp_path / "car.step"),

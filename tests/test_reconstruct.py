@@ -128,6 +128,23 @@ def _bad(tmp_path, *args):
     return proc, lines
 
 
+def test_a_camera_photo_with_the_car_off_centre_is_turned_to(tmp_path, library):
+    """reconstruct reads the focal length from a camera JPEG's EXIF and turns the camera to a car
+    15° off the photo's axis; the summary says so."""
+    import carbody
+    from carbody.camera import View
+    from tests.conftest import camera_jpeg, off_centre_photo
+
+    focal = camera_jpeg(tmp_path / "car.jpg", (2000, 1000), 17)
+    t = library.template_names.index("Volvo V60")
+    j = int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
+    marks = off_centre_photo(library.points(j), View(45, 10), noise=1.0, focal=focal)
+    rec = carbody.reconstruct(tmp_path / "car.jpg", marks, view=45)
+    report = rec.report()
+    assert report["fit"]["camera_turn_deg"] == pytest.approx(15.0, abs=1.5)
+    assert "deg from the photo's axis to the car" in rec.summary(report)
+
+
 def test_bad_keypoint_file_is_one_line_and_writes_nothing(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text('{"hello": 1}')
