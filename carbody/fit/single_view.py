@@ -257,20 +257,26 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     # length whose fit has the best evidence (an oblique image plane passes for a nearer camera,
     # and the turn by that camera's focal length can settle far off).
     turn = dict(fit=fit, uv=uv, principal=principal, given=view, deform=fitted_uv is not None)
-    if focal_px is not None:
-        result, fitted_uv = _looking_at_car(result, focal_px, **turn)
+    if focal_px is not None or camera_distance_mm != "auto":
+        result, fitted_uv = _looking_at_car(result, focal_px, **turn, rescan=True)
     else:
-        result, fitted_uv = _looking_at_car(result, None, **turn)
-        if camera_distance_mm == "auto" and result.focal_px is not None:
-            result, fitted_uv = _looking_at_car(result, _best_focal(result, turn), **turn)
+        settled, settled_uv = _looking_at_car(result, None, **turn)
+        if settled.focal_px is None:  # the camera already looked at the car
+            result, fitted_uv = settled, settled_uv
+        else:
+            result, fitted_uv = _looking_at_car(settled, _best_focal(settled, turn), **turn, rescan=True)
     return result if fitted_uv is None else _deformed(result, fitted_uv)
 
 
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
-                    principal: np.ndarray, given: View, deform: bool, passes: int | None = None):
+                    principal: np.ndarray, given: View, deform: bool, passes: int | None = None,
+                    rescan: bool = False):
     """Refit ``result`` (a pinhole fit made as if the camera looked at the car) with the camera
     turned about its centre to look at the car: (the fit, its marks in the turned camera or None
-    when there is no deformation to come). ``focal_px`` None: the fit's own, f = s·D."""
+    when there is no deformation to come). ``focal_px`` None: the fit's own, f = s·D.
+    ``rescan``: the first refit starts again from the given view with the refinement's coarse
+    scan (an oblique image plane can have pulled the unturned fit's view degrees off), the
+    later ones from the previous refit's view."""
     looking, fitted_uv = np.array([0.0, 0.0, 1.0]), uv if deform else None
     for _ in range(passes or PRINCIPAL_PASSES):
         aim_px = result.project_points(np.asarray(result.view.aim) * result.mm_per_unit)
@@ -281,8 +287,9 @@ def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np
             break  # the camera already looks at the car
         looking, to_turned = to_car, look_at_homography(aim_px, principal, focal)
         turned_uv = apply_homography(to_turned, uv)
-        result = _fit_checked(**{**fit, "uv": turned_uv, "view": result.view},
-                              distance_wheelbase_mm=result.wheelbase_mm, scan=False)
+        result = _fit_checked(**{**fit, "uv": turned_uv, "view": fit["view"] if rescan else result.view},
+                              distance_wheelbase_mm=result.wheelbase_mm, scan=rescan)
+        rescan = False
         fitted_uv = turned_uv if deform else None
         _in_photo(result, to_turned, uv, given)
         result.focal_px, result.camera_turn_deg = focal, float(np.degrees(np.arccos(looking[2])))
