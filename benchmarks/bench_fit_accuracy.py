@@ -94,8 +94,7 @@ def left_out(t: int):
 
     lib = load_library()
     name = lib.template_names[t]
-    j = np.flatnonzero((lib.template_index == t) & np.all(lib.factors == 1.0, axis=1))[0]
-    return (name, lib.without(name), lib.S[:, j].reshape(-1, 3), float(lib.template_wheelbase_mm[t]),
+    return (name, lib.without(name), lib.points(lib.original(t)), float(lib.template_wheelbase_mm[t]),
             load_topology().keypoint_point_indices)
 
 

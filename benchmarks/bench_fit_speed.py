@@ -69,9 +69,7 @@ def main(argv=None) -> int:
     lib = load_library()
     idx = load_topology().keypoint_point_indices
     name = "Toyota Camry XV70"
-    t = lib.template_names.index(name)
-    j = int(np.flatnonzero((lib.template_index == t) & np.all(lib.factors == 1, axis=1))[0])
-    truth = lib.points(j) * [1.05, 0.98, 1.03]  # a car near, not in, the library
+    truth = lib.points(lib.original(name)) * [1.05, 0.98, 1.03]  # a car near, not in, the library
     view = View(30)
     slots = visible_slots(view, truth)
     rng = np.random.default_rng(0)

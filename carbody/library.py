@@ -79,6 +79,11 @@ class Library:
         """(280, 3) normalised control points of model ``j``."""
         return self.S[:, j].reshape(-1, 3)
 
+    def original(self, template: str | int) -> int:
+        """The column of a template's own model (every expansion factor 1), by name or index."""
+        t = self.template_names.index(template) if isinstance(template, str) else int(template)
+        return int(np.flatnonzero((self.template_index == t) & np.all(self.factors == 1.0, axis=1))[0])
+
     def without(self, template: str) -> "Library":
         """This library less one template and all its expansions (leave-one-out)."""
         if template not in self.template_names:

@@ -17,9 +17,7 @@ def photo(tmp_path_factory, library):
     from carbody.wireframe import sample_curves
 
     folder = tmp_path_factory.mktemp("fit")
-    t = library.template_names.index("Volvo V60")
-    j = int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
-    cp = library.points(j)
+    cp = library.points(library.original("Volvo V60"))
     view = View(30, 5)
     both = np.concatenate([cp, cp * [-1, 1, 1]])
     p = project(both, view)
@@ -45,9 +43,8 @@ def test_fit_turns_to_a_car_off_a_camera_photo_s_centre(tmp_path, library):
     from tests.conftest import camera_jpeg, off_centre_photo
 
     focal = camera_jpeg(tmp_path / "car.jpg", (2000, 1000), 17)
-    t = library.template_names.index("Toyota Camry XV70")
-    j = int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
-    marks = off_centre_photo(library.points(j), View(30, 10), noise=1.0, focal=focal)
+    marks = off_centre_photo(library.points(library.original("Toyota Camry XV70")), View(30, 10), noise=1.0,
+                             focal=focal)
     (tmp_path / "car.json").write_text(json.dumps({"image": "car.jpg", "keypoints": marks}))
     proc = run_cli("fit", str(tmp_path / "car.jpg"), "--keypoints", str(tmp_path / "car.json"), "--view", "30",
                    "--exclude-template", "Toyota Camry XV70", "-o", str(tmp_path / "car.step"),

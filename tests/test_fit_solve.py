@@ -17,14 +17,10 @@ def _observe(truth, view, scale=0.4, offset=(520.0, 310.0), noise=0.0, seed=0):
     return slots, uv
 
 
-def _original(library, t):
-    return int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
-
-
 def _left_out(library, template):
     """(template index, the library without it, its normalised (280, 3) points)."""
     t = library.template_names.index(template)
-    return t, library.without(template), library.points(_original(library, t))
+    return t, library.without(template), library.points(library.original(t))
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -43,7 +39,7 @@ def test_active_set_nnls_matches_scipy(seed):
 def test_library_model_is_recovered_exactly(library, topology):
     """A library model seen without noise: the paper's solve reproduces it, scale and offset too."""
     basis = KeypointBasis.from_shapes(library.S, topology.keypoint_point_indices)
-    j = _original(library, 3)
+    j = library.original(3)
     truth = library.points(j)
     view = View(40, 8, 2)
     slots, uv = _observe(truth, view)
@@ -60,7 +56,7 @@ def test_working_set_solve_equals_the_full_solve(library, topology, monkeypatch)
     import carbody.fit.solve as solve
 
     basis = KeypointBasis.from_shapes(library.S, topology.keypoint_point_indices)
-    truth = library.points(_original(library, 5)) * [1.07, 0.98, 1.04]  # off the library
+    truth = library.points(library.original(5)) * [1.07, 0.98, 1.04]  # off the library
     view = View(120)
     slots, uv = _observe(truth, view, noise=1.0)
     full = solve_simplex(basis, slots, uv, view)
@@ -112,7 +108,7 @@ def test_car_off_the_photo_centre_is_turned_to(library, topology):
     """An uncropped photo from 2.2 wheelbases (≈ 6 m) whose optical axis points 15° beside the
     car: taking the camera to point at the car leaves the image plane's obliquity as a shape
     error; told the photo's centre, the fit turns the camera to the car and lands on it."""
-    truth = library.points(_original(library, 3))
+    truth = library.points(library.original(3))
     marks = off_centre_photo(truth, View(30, 10))
     uv = np.array(list(marks.values()))
     kp = topology.keypoint_point_indices
@@ -193,7 +189,7 @@ def test_refinement_wins_back_a_wrong_angle(library, topology):
 
 def test_right_side_view_with_mirror_names(library, topology):
     """A photo of the right side (θ = 270°), annotated with mirror names, fits like the left."""
-    j = _original(library, 0)
+    j = library.original(0)
     truth = library.points(j)
     slots, uv = _observe(truth, View(300, 5), noise=0.5)
     assert sum(s.is_mirror for s in slots) >= 15  # mostly right-half names
@@ -204,7 +200,7 @@ def test_right_side_view_with_mirror_names(library, topology):
 
 
 def test_fit_result_reports(library):
-    truth = library.points(_original(library, 2))
+    truth = library.points(library.original(2))
     slots, uv = _observe(truth, View(45), noise=0.5)
     res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, 45, library)
     assert res.wheelbase_mm == pytest.approx(float(res.solution.H @ library.model_wheelbase_mm))
@@ -260,7 +256,7 @@ def test_deformation_moves_an_unlike_car_onto_its_marks(library, topology):
 
 def test_deformation_leaves_a_library_car_alone(library, topology):
     """Marks the mix already meets (a library model, no noise) move nothing."""
-    truth = library.points(_original(library, 4))
+    truth = library.points(library.original(4))
     slots, uv = _observe(truth, View(45))
     res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, 45, library, wheelbase_mm=1000.0,
                         refine=False, method="paper", deform=True)
@@ -283,7 +279,7 @@ def test_photo_from_a_few_metres_needs_the_pinhole_camera(library, topology):
     the fit told the distance lands on the marks and near the car (the paper's solve too), and
     "auto" finds the distance."""
     t = 3
-    truth = library.points(_original(library, t))
+    truth = library.points(library.original(t))
     kps = _pinhole_observe(truth, View(30, 10), 2200.0, noise=0.5)
     kp = topology.keypoint_point_indices
     wb_mm = library.template_wheelbase_mm[t]

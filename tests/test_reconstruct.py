@@ -136,9 +136,7 @@ def test_a_camera_photo_with_the_car_off_centre_is_turned_to(tmp_path, library):
     from tests.conftest import camera_jpeg, off_centre_photo
 
     focal = camera_jpeg(tmp_path / "car.jpg", (2000, 1000), 17)
-    t = library.template_names.index("Volvo V60")
-    j = int(np.flatnonzero((library.template_index == t) & np.all(library.factors == 1, axis=1))[0])
-    marks = off_centre_photo(library.points(j), View(45, 10), noise=1.0, focal=focal)
+    marks = off_centre_photo(library.points(library.original("Volvo V60")), View(45, 10), noise=1.0, focal=focal)
     rec = carbody.reconstruct(tmp_path / "car.jpg", marks, view=45)
     report = rec.report()
     assert report["fit"]["camera_turn_deg"] == pytest.approx(15.0, abs=1.5)
