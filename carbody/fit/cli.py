@@ -7,6 +7,7 @@ from pathlib import Path
 
 from carbody.fit.solve import METHODS
 
+
 def add_camera_arguments(p: argparse.ArgumentParser) -> None:
     """The photo's camera options, shared by ``fit`` and ``reconstruct``."""
     p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",

@@ -52,6 +52,11 @@ AZIMUTH_SCAN_DEG = (-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0)
 ELEVATION_SCAN_DEG = (-8.0, 0.0, 8.0, 16.0)
 
 
+def view_score(sol) -> float:
+    """What the refinement minimises: a solution's evidence, else (the paper's solve) its cost."""
+    return sol.evidence if getattr(sol, "evidence", None) is not None else sol.cost
+
+
 def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations: int = 60,
                 free: tuple[str, ...] = DEFAULT_FREE, scan: bool = True):
     """The view near ``given`` whose solve has the least evidence (or residual).
@@ -82,9 +87,6 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     rho0 = 0.0 if given.distance is None else PERSPECTIVE_LENGTH / given.distance
     best_view, best = given, solve_at(given)
 
-    def score(sol) -> float:
-        return sol.evidence if getattr(sol, "evidence", None) is not None else sol.cost
-
     azimuths = AZIMUTH_SCAN_DEG if "azimuth" in free else (0.0,)
     elevations = [e for e in ELEVATION_SCAN_DEG if ELEVATION_RANGE_DEG[0] <= given.elevation + e
                   <= ELEVATION_RANGE_DEG[1]] if "elevation" in free else [0.0]
@@ -95,7 +97,7 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
             sol = solve_at(v)
         except (FitError, AngleError):
             return
-        if score(sol) < score(best):
+        if view_score(sol) < view_score(best):
             best_view, best = v, sol
 
     # A free perspective is scanned both ways: a photo from afar looks orthographic, and the two
@@ -158,6 +160,6 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
                             diff_step=1e-4, max_nfev=max_evaluations, method="trf")
         refined = view_at(full(fit.x))
     sol = solve_at(refined)
-    if score(sol) <= score(best):
+    if view_score(sol) <= view_score(best):
         return refined, sol
     return best_view, best

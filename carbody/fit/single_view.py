@@ -14,7 +14,7 @@ from carbody.errors import FitError
 from carbody.camera import View, apply_homography, look_at_homography, project
 from carbody.fit.deform import DeformationField
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
-from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view
+from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, KeypointBasis, MixSolution,
                                ShapeModel, car_centre, solve_gauss, solve_simplex)
 from carbody.library import Library
@@ -197,7 +197,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             ``"centre"`` (the image centre of an uncropped photo; needs ``image_size``), (u, v)
             pixels, or ``"auto"`` (default): ``"centre"`` when ``focal_px`` is known (a focal
             length from EXIF or a 35 mm-equivalent one holds for the uncropped frame only),
-            else ``"car"`` (:func:`resolve_principal_point`). A car off the axis is seen
+            else ``"car"``. A car off the axis is seen
             obliquely by the image plane: the fit then turns the camera about its centre to
             look at the car (:func:`~carbody.camera.look_at_homography`) and fits again. The turn needs the
             focal length: ``focal_px``, else the fit's own (scale × distance) until it settles,
@@ -228,17 +228,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
         library = load_library()
     slots, uv = check_keypoints(keypoints, image_size, load_topology())
-    principal = _principal_point(resolve_principal_point(principal_point, focal_px), image_size)
+    principal = _principal_point(principal_point, image_size, focal_px)
     if focal_px is not None and not (np.isfinite(focal_px) and focal_px > 0):
         raise FitError(f"focal length {focal_px!r} px is not a positive number")
     # Passes that may be refitted skip the deformation; the fit kept gets it (_deformed) at the end.
     fit = dict(slots=slots, uv=uv, view=view, library=library, method=method,
                prior_weight=prior_weight, refine=refine, camera_distance_mm=camera_distance_mm,
                wheelbase_mm=wheelbase_mm, name=name)
-    if (method != "paper") if deform is None else deform:
-        fitted_uv = uv  # the marks in the kept fit's camera (a turned camera's, below)
-    else:
-        fitted_uv = None
+    deform = (method != "paper") if deform is None else deform
     if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
         result = _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
     else:
@@ -251,33 +248,30 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                 break
             read_at = result.wheelbase_mm
     if principal is None or result.view.distance is None:
-        return result if fitted_uv is None else _deformed(result, fitted_uv)
+        return _deformed(result) if deform else result
     # Turn the camera to look at the car's centre and refit: by the known focal length, else the
     # fit's own (f = s·D) until the turn settles, then, when the distance is found too, the focal
     # length whose fit has the best evidence (an oblique image plane passes for a nearer camera,
     # and the turn by that camera's focal length can settle far off).
-    turn = dict(fit=fit, uv=uv, principal=principal, given=view, deform=fitted_uv is not None)
+    turn = dict(fit=fit, uv=uv, principal=principal, given=view)
     if focal_px is not None or camera_distance_mm != "auto":
-        result, fitted_uv = _looking_at_car(result, focal_px, **turn, rescan=True)
+        result = _looking_at_car(result, focal_px, **turn, rescan=True)
     else:
-        settled, settled_uv = _looking_at_car(result, None, **turn)
-        if settled.focal_px is None:  # the camera already looked at the car
-            result, fitted_uv = settled, settled_uv
-        else:
-            result, fitted_uv = _looking_at_car(settled, _best_focal(settled, turn), **turn, rescan=True)
-    return result if fitted_uv is None else _deformed(result, fitted_uv)
+        result = _looking_at_car(result, None, **turn)
+        if result.focal_px is not None:  # turned: now the focal length with the best evidence
+            result = _looking_at_car(result, _best_focal(result, turn), **turn, rescan=True)
+    return _deformed(result) if deform else result
 
 
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
-                    principal: np.ndarray, given: View, deform: bool, passes: int | None = None,
-                    rescan: bool = False):
+                    principal: np.ndarray, given: View, passes: int | None = None,
+                    rescan: bool = False) -> FitResult:
     """Refit ``result`` (a pinhole fit made as if the camera looked at the car) with the camera
-    turned about its centre to look at the car: (the fit, its marks in the turned camera or None
-    when there is no deformation to come). ``focal_px`` None: the fit's own, f = s·D.
+    turned about its centre to look at the car. ``focal_px`` None: the fit's own, f = s·D.
     ``rescan``: the first refit starts again from the given view with the refinement's coarse
     scan (an oblique image plane can have pulled the unturned fit's view degrees off), the
     later ones from the previous refit's view."""
-    looking, fitted_uv = np.array([0.0, 0.0, 1.0]), uv if deform else None
+    looking = np.array([0.0, 0.0, 1.0])
     for _ in range(passes or PRINCIPAL_PASSES):
         aim_px = result.project_points(np.asarray(result.view.aim) * result.mm_per_unit)
         focal = focal_px if focal_px is not None else result.solution.scale * result.view.distance
@@ -286,14 +280,13 @@ def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np
         if np.degrees(np.arccos(min(1.0, float(to_car @ looking)))) < PRINCIPAL_TOLERANCE_DEG:
             break  # the camera already looks at the car
         looking, to_turned = to_car, look_at_homography(aim_px, principal, focal)
-        turned_uv = apply_homography(to_turned, uv)
-        result = _fit_checked(**{**fit, "uv": turned_uv, "view": fit["view"] if rescan else result.view},
+        result = _fit_checked(**{**fit, "uv": apply_homography(to_turned, uv),
+                                 "view": fit["view"] if rescan else result.view},
                               distance_wheelbase_mm=result.wheelbase_mm, scan=rescan)
         rescan = False
-        fitted_uv = turned_uv if deform else None
         _in_photo(result, to_turned, uv, given)
         result.focal_px, result.camera_turn_deg = focal, float(np.degrees(np.arccos(looking[2])))
-    return result, fitted_uv
+    return result
 
 
 def _best_focal(settled: FitResult, turn: dict) -> float:
@@ -302,24 +295,17 @@ def _best_focal(settled: FitResult, turn: dict) -> float:
     used, each candidate one turn and refit from ``settled``'s view."""
     from scipy.optimize import minimize_scalar
 
-    once = {**turn, "deform": False, "passes": 1}
     scores = {}
 
     def score(log_f: float) -> float:
-        scores[log_f] = _score(_looking_at_car(settled, float(np.exp(log_f)), **once)[0])
+        scores[log_f] = view_score(_looking_at_car(settled, float(np.exp(log_f)), **turn, passes=1).solution)
         return scores[log_f]
 
     centre, span = float(np.log(settled.focal_px)), float(np.log(FOCAL_SEARCH_RANGE))
     minimize_scalar(score, bounds=(centre - span, centre + span), method="bounded",
                     options={"xatol": FOCAL_SEARCH_TOLERANCE})
     best = min(scores, key=scores.get)
-    return float(np.exp(best if scores[best] < _score(settled) else centre))
-
-
-def _score(result: FitResult) -> float:
-    """What the view refinement minimises: the evidence, else (``"paper"``) the cost."""
-    sol = result.solution
-    return sol.evidence if sol.evidence is not None else sol.cost
+    return float(np.exp(best if scores[best] < view_score(settled.solution) else centre))
 
 
 #: With the focal length unknown, the turn toward an off-centre car tries focal lengths up to
@@ -336,12 +322,13 @@ def _in_photo(result: FitResult, to_turned: np.ndarray, uv: np.ndarray, given: V
     result.solution.residual_px = np.linalg.norm(result.reprojected() - uv, axis=1)
 
 
-def _deformed(result: FitResult, fitted_uv: np.ndarray) -> FitResult:
+def _deformed(result: FitResult) -> FitResult:
     """The fit with its mix moved onto the marks by the photo-matching deformation
-    (:mod:`carbody.fit.deform`); ``fitted_uv`` are the marks in the fit's own camera."""
+    (:mod:`carbody.fit.deform`), in the fit's own camera (a turned one's pixels, if turned)."""
     sol, idx = result.solution, load_topology().keypoint_point_indices
+    uv = result.uv if result.to_photo is None else apply_homography(np.linalg.inv(result.to_photo), result.uv)
     before = sol.shape
-    sol.shape = prepared_field(result.library).fit_to_keypoints(before, idx, result.slots, fitted_uv,
+    sol.shape = prepared_field(result.library).fit_to_keypoints(before, idx, result.slots, uv,
                                                                 result.view, sol.scale, sol.offset)
     moved = float(np.max(np.linalg.norm((sol.shape - before).reshape(-1, 3), axis=1)))
     result.wireframe = Wireframe(result.wireframe.name, sol.shape.reshape(-1, 3) * result.mm_per_unit)
@@ -358,16 +345,11 @@ PRINCIPAL_PASSES = 4
 PRINCIPAL_TOLERANCE_DEG = 0.25
 
 
-def resolve_principal_point(principal_point, focal_px: float | None):
-    """``"auto"`` → ``"centre"`` with a known focal length (the photo is its camera's whole
-    frame), else ``"car"``; anything else as given."""
+def _principal_point(principal_point, image_size, focal_px: float | None) -> np.ndarray | None:
+    """(2,) pixels where the optical axis meets the photo, or None (aimed at the car); "auto" is
+    "centre" with a known focal length (the photo is its camera's whole frame), else "car"."""
     if isinstance(principal_point, str) and principal_point == "auto":
-        return "centre" if focal_px is not None else "car"
-    return principal_point
-
-
-def _principal_point(principal_point, image_size) -> np.ndarray | None:
-    """(2,) pixels where the optical axis meets the photo, or None (aimed at the car)."""
+        principal_point = "centre" if focal_px is not None else "car"
     if principal_point == "car" or principal_point is None:
         return None
     if principal_point == "centre":
