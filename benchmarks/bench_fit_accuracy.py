@@ -130,6 +130,8 @@ def run_template(args) -> list[dict]:
                                 **kw, **kw_camera)
             dt = time.perf_counter() - t0
             err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
+            expected = res.expected_error_mm()
+            expected = None if expected is None else [expected[k.name] for k in load_topology().keypoints]
             rows.append({"template": name, "azimuth": azimuth, "method": method, "lambda": lam,
                          "offset": offset, "refine": refine, "deform": deform and method != "paper",
                          "given_elevation": given_elevation, "elevation": elevation, "camera": camera,
@@ -145,6 +147,8 @@ def run_template(args) -> list[dict]:
                          # the wheelbase the fit would have used had none been given, vs the truth
                          "wheelbase_estimate_pct": 100.0 * (float(res.solution.H @ loo.model_wheelbase_mm) / wb - 1.0),
                          "residual_px": float(res.solution.residual_px.mean()),
+                         # the fit's own estimate of each keypoint's error, against the error
+                         "expected_mm": expected, "error_mm": err.tolist(),
                          "seconds": dt})
     return rows
 
@@ -189,6 +193,30 @@ def summarise(rows: list[dict]) -> str:
         out.append(f"| {lab} | {mean:.1f} | {mid:.1f} | {m30:.1f} | {m150:.1f} | {mx:.1f} | {a30:.1f} | {a150:.1f} "
                    f"| {near}/{len(rs)} | {np.mean([r['residual_px'] for r in rs]):.2f} | {sec:.3f} |")
     return "\n".join(out)
+
+
+def calibration(rows: list[dict]) -> str:
+    """How the fit's own expected error per keypoint (``FitResult.expected_error_mm``) compares
+    with the real one: the median ratio, the share of keypoints within 1× and 2× of their
+    expected error, and the rank correlation of expected and real mean error across cases."""
+    from scipy.stats import spearmanr
+
+    out = ["", "Expected error (the fit's own estimate, `expected_error_mm` in the report) against the "
+           "real one, per keypoint:", "",
+           "| case | mean real (mm) | mean expected (mm) | median real / expected | within 1× | within 2× "
+           "| rank correlation over cases |", "|---|---|---|---|---|---|---|"]
+    for lab in dict.fromkeys(case_label(r) for r in rows):
+        rs = [r for r in rows if case_label(r) == lab and r.get("expected_mm") is not None]
+        if not rs or "λ=" in lab:
+            continue
+        err = np.concatenate([r["error_mm"] for r in rs])
+        exp = np.concatenate([r["expected_mm"] for r in rs])
+        keep = exp > 0  # the wheel centres sit on the wheelbase exactly
+        ratio = err[keep] / exp[keep]
+        rho = spearmanr([r["mean_mm"] for r in rs], [np.mean(r["expected_mm"]) for r in rs])[0]
+        out.append(f"| {lab} | {err.mean():.1f} | {exp.mean():.1f} | {np.median(ratio):.2f} "
+                   f"| {100 * np.mean(ratio <= 1):.0f} % | {100 * np.mean(ratio <= 2):.0f} % | {rho:.2f} |")
+    return "\n".join(out) if len(out) > 5 else ""
 
 
 def table(rows: list[dict], label: str) -> str:
@@ -297,6 +325,7 @@ def main(argv=None) -> int:
                     and r.get("camera") == ("told" if args.distance is not None else None)])
         if len(e):
             print(f"| {method} | {e.mean():.1f} % | {np.median(e):.1f} % | {e.max():.1f} % |")
+    print(calibration(rows))
     for label in dict.fromkeys(case_label(r) for r in rows):
         if "λ=" in label:
             continue

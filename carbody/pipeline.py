@@ -129,6 +129,11 @@ class Reconstruction:
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm",
         ]
+        if "expected_error_mm" in fit:
+            least = sorted(fit["expected_error_mm"], key=lambda n: -fit["expected_error_mm"][n])[:3]
+            lines.append(f"expected 3D keypoint error (the fit's own estimate): mean "
+                         f"{fit['expected_error_mm_mean']:.0f} mm; least sure: "
+                         + ", ".join(f"{n} ({fit['expected_error_mm'][n]:.0f} mm)" for n in least))
         if fit["suspect_keypoints"]:
             lines.append("the fitted car passes far from these marks (check them): "
                          + ", ".join(f"{n} ({fit['residual_px'][n]:.0f} px)" for n in fit["suspect_keypoints"]))

@@ -82,6 +82,10 @@ def test_fit_writes_step_overlay_and_report(photo):
     assert rep["error_mm_mean"] < 80 and set(rep["error_mm"]) == {k for k in rep["keypoints_mm"] if not k.endswith("_right")}
     assert rep["error_mm_at_truth_wheelbase_mean"] < 80 and len(rep["error_mm_at_truth_wheelbase"]) == 35
     assert (out / "r.errors.png").is_file()
+    expected = rep["expected_error_mm"]
+    assert set(expected) == set(rep["error_mm"]) and 0 < rep["expected_error_mm_mean"] < 200
+    assert set(rep["keypoint_sd_mm"]) == set(rep["keypoints_mm"])
+    assert "expected 3D keypoint error" in proc.stdout
 
 
 def test_visible_keypoints_command():

@@ -98,6 +98,8 @@ def _truth(spec: str):
 
 
 def run_fit(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from carbody.errors import FitError
     from carbody.camera import View, check_azimuth
     from carbody.fit.keypoints_io import read_keypoints
@@ -140,7 +142,8 @@ def run_fit(args: argparse.Namespace) -> int:
         if truth is not None:
             chart = Path(args.report).with_suffix(".errors.png")
             draw_error_chart(report["error_mm_at_truth_wheelbase"], chart,
-                             annotated={s.name.removesuffix("_right") for s in result.slots})
+                             annotated={s.name.removesuffix("_right") for s in result.slots},
+                             expected_mm=report.get("expected_error_mm"))
     v = result.view
     camera = ("orthographic camera" if result.camera_distance_mm is None
               else f"camera {result.camera_distance_mm:.0f} mm away")
@@ -152,6 +155,11 @@ def run_fit(args: argparse.Namespace) -> int:
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm -> {args.output}")
+    expected = result.expected_error_mm()
+    if expected is not None:
+        least = sorted(expected, key=lambda n: -expected[n])[:3]
+        print(f"expected 3D keypoint error (the fit's own estimate): mean {np.mean(list(expected.values())):.0f} mm; "
+              "least sure: " + ", ".join(f"{n} ({expected[n]:.0f} mm)" for n in least))
     suspects = result.suspect_keypoints()
     if suspects:
         res = result.residuals_px()

@@ -67,6 +67,14 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
     }
+    expected = result.expected_error_mm()
+    if expected is not None:
+        # the fit's own estimate of how far each keypoint may be off (posterior standard
+        # deviations per axis, and their 3D root sum of squares); BENCHMARKS.md compares it
+        # with the leave-one-out errors
+        report["keypoint_sd_mm"] = result.keypoint_sd_mm()
+        report["expected_error_mm"] = expected
+        report["expected_error_mm_mean"] = float(np.mean(list(expected.values())))
     if truth is not None:
         err = keypoint_errors_mm(result.wireframe, truth)
         report["truth"] = truth.name
@@ -93,8 +101,9 @@ def write_json(path: str | Path, data: dict) -> Path:
 
 
 def draw_error_chart(errors_mm: dict[str, float], path: str | Path, title: str = "",
-                     annotated: set[str] | None = None) -> Path:
-    """Bar chart of the 3D error per keypoint (paper Fig. 12–13); annotated keypoints dark."""
+                     annotated: set[str] | None = None, expected_mm: dict[str, float] | None = None) -> Path:
+    """Bar chart of the 3D error per keypoint (paper Fig. 12–13); annotated keypoints dark;
+    the fit's own expected error, when given, as a marker on each bar."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -105,7 +114,11 @@ def draw_error_chart(errors_mm: dict[str, float], path: str | Path, title: str =
     vals = [errors_mm[n] for n in names]
     colours = ["#1f4e9c" if annotated is None or n in annotated else "#9fb3d6" for n in names]
     fig, ax = plt.subplots(figsize=(11, 4))
-    ax.bar([k.id for k in topo.keypoints], vals, color=colours)
+    ax.bar([k.id for k in topo.keypoints], vals, color=colours, label="error vs truth")
+    if expected_mm is not None:
+        ax.plot([k.id for k in topo.keypoints], [expected_mm[n] for n in names], "_", color="#d62728",
+                markersize=14, markeredgewidth=2.5, label="expected by the fit")
+        ax.legend(loc="upper right")
     ax.set_xticks([k.id for k in topo.keypoints])
     ax.set_xlabel("keypoint (Fig. 6 number; dark = annotated)")
     ax.set_ylabel("3D error (mm)")

@@ -16,7 +16,8 @@ from carbody.fit.deform import DeformationField
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
 from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, KeypointBasis, MixSolution,
-                               ShapeModel, car_centre, solve_gauss, solve_simplex)
+                               ShapeModel, car_centre, keypoint_covariance, solve_gauss,
+                               solve_simplex)
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
@@ -115,6 +116,33 @@ class FitResult:
             if s.is_mirror:
                 out[s.name] = [float(v) for v in self.wireframe.control_points[s.point_index] * s.sign]
         return out
+
+    def keypoint_sd_mm(self) -> dict[str, list[float]] | None:
+        """{name: [σx, σy, σz] mm}: how far each keypoint of :meth:`keypoints_mm` may be off,
+        one standard deviation per axis, from the Gaussian-prior solve's posterior
+        (:func:`~carbody.fit.solve.keypoint_covariance`): small where the marks pin a
+        keypoint, the library's spread where the view cannot see it (the length on a front
+        view, the width on a level side view). None for the ``"paper"`` method."""
+        post = self.solution.posterior
+        if post is None:
+            return None
+        idx = load_topology().keypoint_point_indices
+        cov = keypoint_covariance(prepared(self.library, self.method), idx, post)
+        sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None)) * self.mm_per_unit
+        names = [k.name for k in load_topology().keypoints]
+        out = {n: [float(v) for v in row] for n, row in zip(names, sd)}
+        for s in self.slots:
+            if s.is_mirror:
+                out[s.name] = out[s.name.removesuffix("_right")]
+        return out
+
+    def expected_error_mm(self) -> dict[str, float] | None:
+        """{name: √(σx² + σy² + σz²) mm} of the 35 left keypoints: the fit's own estimate of
+        each keypoint's 3D error (:meth:`keypoint_sd_mm`); None for ``"paper"``."""
+        sd = self.keypoint_sd_mm()
+        if sd is None:
+            return None
+        return {k.name: float(np.linalg.norm(sd[k.name])) for k in load_topology().keypoints}
 
     def reprojected(self) -> np.ndarray:
         """(k, 2) float, pixels of the fitted annotated keypoints under the refined camera."""
@@ -404,6 +432,9 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
         refined, sol = view, solve_at(view)
     if sol.view is not None:
         refined = sol.view  # a pinhole view's aim, settled on the fitted car
+    if free and sol.posterior is not None:
+        sol.posterior.view_spread = _view_spread(solve_at, refined, sol,
+                                                 tuple(f for f in free if f in ("azimuth", "elevation")))
     refined = View(float(refined.azimuth) % 360.0, float(refined.elevation), float(refined.roll),
                    refined.distance, refined.aim)
     if sol.shape is None:
@@ -416,6 +447,37 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
     return FitResult(wireframe=Wireframe(name, points), view=refined, given_view=view, solution=sol,
                      slots=slots, uv=uv, wheelbase_mm=float(wheelbase_mm), method=method,
                      library=library)
+
+
+#: Step (degrees) of the finite differences that measure how sharply the evidence pins a
+#: refined view angle.
+VIEW_STEP_DEG = 0.5
+
+#: Largest standard deviation (degrees) a refined view angle is given where the evidence is flat.
+MAX_VIEW_SD_DEG = 10.0
+
+
+def _view_spread(solve_at, view: View, sol: MixSolution, angles: tuple[str, ...]) -> np.ndarray:
+    """(len(angles), 105): the keypoints' move (normalised units) per one standard deviation of
+    each refined view angle — a Laplace approximation: the evidence's curvature at the refined
+    view (the shape re-solved at every view, so its trade with the angle is in it) gives the
+    angle's standard deviation at the prior's noise level λ, rescaled to the marks' own
+    (their residual variance, cost / rows); central differences of the solved shape give its
+    slope. Near level views the marks hardly tell azimuth from width, and this says so."""
+    from dataclasses import replace
+
+    idx = load_topology().keypoint_point_indices
+    noise_ratio = sol.cost / (sol.posterior.lam * max(2 * len(sol.residual_px) - 2, 1))
+    score = view_score(sol)
+    rows = []
+    for angle in angles:
+        at = getattr(view, angle)
+        plus, minus = (solve_at(replace(view, **{angle: at + sign * VIEW_STEP_DEG})) for sign in (1, -1))
+        curvature = (view_score(plus) + view_score(minus) - 2.0 * score) / VIEW_STEP_DEG ** 2
+        sd = MAX_VIEW_SD_DEG if not curvature > 0 else min(np.sqrt(noise_ratio / curvature), MAX_VIEW_SD_DEG)
+        slope = (plus.shape.reshape(-1, 3)[idx] - minus.shape.reshape(-1, 3)[idx]).ravel() / (2 * VIEW_STEP_DEG)
+        rows.append(slope * sd)
+    return np.array(rows)
 
 
 #: Where ``camera_distance_mm="auto"`` starts: 2.5 wheelbases (≈ 7 m), a typical photo.

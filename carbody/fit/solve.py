@@ -182,6 +182,9 @@ class MixSolution:
         evidence: −log marginal likelihood of the view with the shape integrated out, up to a
             constant (``"gauss"``/``"mixture"``; the view refinement minimises it).
         view: the camera solved with (a pinhole view's aim moved onto the car's centre).
+        posterior: how far the shape is pinned (``"gauss"``/``"mixture"``): a
+            :class:`ShapePosterior`, from which :func:`keypoint_covariance` gives each
+            keypoint's uncertainty.
     """
 
     shape: np.ndarray | None
@@ -194,6 +197,40 @@ class MixSolution:
     support: np.ndarray | None = None
     evidence: float | None = None
     view: View | None = None
+    posterior: "ShapePosterior | None" = None
+
+
+@dataclass
+class ShapePosterior:
+    """The Gaussian-prior solve's posterior over the shape coefficients a, kept as the solve's
+    own pieces (the covariance is built only when asked, :func:`keypoint_covariance`).
+
+    Each prior centre t gives a Gaussian posterior N(a_t, Σ) with
+    Σ = V·diag(λ / (λ + g²e))·Vᵀ + (I − V·Vᵀ): directions the image sees (the right singular
+    vectors V of the projected basis, squared singular values e) narrowed by the data, the
+    others left at the prior's unit variance. The mixture's posterior is the components
+    weighted by ``weights``: its covariance adds their spread about the mean. When the marks
+    fit worse than λ's noise allows (a car unlike the library, a misplaced mark), the whole
+    covariance is scaled by ``inflation`` = cost / (λ · data rows), never below 1.
+
+    Attributes:
+        V: (q, r) right singular vectors; e: (r,) squared singular values; lam: λ.
+        g: the image scale in the solve's units (the weighted mean over centres).
+        centres: (T, q) each component's posterior mean a_t; weights: (T,), sum 1.
+        inflation: the covariance's scale factor (≥ 1).
+        view_spread: (n, 3·35) or None: each refined view angle's share, the keypoints' move
+            per one standard deviation of that angle (:func:`carbody.fit.single_view` adds it
+            after the refinement); its outer products join the covariance.
+    """
+
+    V: np.ndarray
+    e: np.ndarray
+    lam: float
+    g: float
+    centres: np.ndarray
+    weights: np.ndarray
+    inflation: float = 1.0
+    view_spread: np.ndarray | None = None
 
 
 def nnls_active_set(A: np.ndarray, b: np.ndarray, passive: np.ndarray | None = None,
@@ -440,7 +477,7 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
     am = (Mc @ mk + cc) / model.size
     if mixture and model.group_means is not None:
         # One Gaussian per template centre, shared covariance; the posterior mean of the mixture.
-        deltas, gs, _, nle = _map_coefficients(am + model.group_means @ AB.T, AB, b, prior_weight)
+        deltas, gs, _, nle, (V, e) = _map_coefficients(am + model.group_means @ AB.T, AB, b, prior_weight)
         w = np.exp(-(nle - nle.min()))
         evidence = float(nle.min() - np.log(w.mean()))
         w /= w.sum()
@@ -448,10 +485,12 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
         a = w @ model.group_means + delta
         g = float(w @ gs)
         prior_part = np.sqrt(prior_weight) * delta
+        posterior = ShapePosterior(V, e, prior_weight, g, model.group_means + deltas, w)
     else:
-        a, g, _, evidence = (v[0] for v in _map_coefficients(am, AB, b, prior_weight))
-        g, evidence = float(g), float(evidence)
+        a, g, _, evidence, (V, e) = _map_coefficients(am, AB, b, prior_weight)
+        a, g, evidence = a[0], float(g[0]), float(evidence[0])
         prior_part = np.sqrt(prior_weight) * a
+        posterior = ShapePosterior(V, e, prior_weight, g, a[None], np.ones(1))
     if not g > 0:
         raise FitError("no shape reproduces these keypoints at a positive image scale "
                        "(check the view angle and which side each keypoint name is on)")
@@ -459,15 +498,39 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
     scale = g * rho / model.size
     offset, pred = _image_fit(M, shape.reshape(-1, 3)[point_indices], z, scale, const)
     rvec = np.concatenate([((pred - z) / rho).ravel(), prior_part])
+    # the centred image has 2k − 2 free rows
+    posterior.inflation = max(1.0, float(rvec @ rvec) / (prior_weight * max(2 * len(z) - 2, 1)))
     H = None
     if model.to_weights is not None:
         H = 1.0 / len(model.to_weights) + model.to_weights @ a
     return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
-                       residual_vector=rvec, evidence=evidence)
+                       residual_vector=rvec, evidence=evidence, posterior=posterior)
 
 
-def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def keypoint_covariance(model: ShapeModel, point_indices: np.ndarray, posterior: ShapePosterior) -> np.ndarray:
+    """(35, 3, 3) float: the posterior covariance of each keypoint, normalised units².
+
+    Keypoints the view does not see keep the library's spread; those it sees are pinned by the
+    marks (to λ's noise) except along the camera's line of sight. A refined view's own
+    uncertainty joins it (``view_spread``); the photo-matching deformation that follows does
+    not. BENCHMARKS.md measures how it compares with the leave-one-out errors.
+    """
+    q = model.basis.shape[1]
+    Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
+    BV = Bk @ posterior.V
+    shrink = posterior.g ** 2 * posterior.e / (posterior.lam + posterior.g ** 2 * posterior.e)
+    cov = Bk @ Bk.T - (BV * shrink) @ BV.T
+    spread = (posterior.centres - posterior.weights @ posterior.centres) @ Bk.T
+    cov += (spread * posterior.weights[:, None]).T @ spread
+    cov *= posterior.inflation
+    if posterior.view_spread is not None:  # already at the marks' own noise level
+        cov += posterior.view_spread.T @ posterior.view_spread
+    n = len(point_indices)
+    return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
+
+
+def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float) -> tuple:
     """argmin over a, g > 0 of ‖g·(am + AB·a) − b‖² + λ‖a‖² (the MAP shape and scale), for one or
     several prior centres at once.
 
@@ -478,7 +541,8 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
         ams: (T, m) the centres' centred projections (the mean shape's, or one per template);
             AB: (m, q) the basis'; b: (m,) the image.
     Returns:
-        (a (T, q), g (T,), the minimised costs (T,), −log evidence (T,)). With noise variance λ
+        (a (T, q), g (T,), the minimised costs (T,), −log evidence (T,), (V, e) the right
+        singular vectors and squared singular values of AB). With noise variance λ
         (the prior on a is N(0, I)), −log p(b) = cost/(2λ) + ½·log det(I + g²·ABᵀAB/λ) + const:
         the log-det term charges a view for every shape direction it lets the data move, so
         comparing views by it does not favour views where the shape can absorb a wrong camera.
@@ -520,7 +584,7 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     c = np.einsum("tm,tm->t", r, r) + lam * np.einsum("tq,tq->t", cv, cv)
     a = cv @ V.T
     nle = c / (2 * lam) + 0.5 * np.sum(np.log1p(g[:, None] ** 2 * e / lam), axis=1)
-    return a, g, c, nle
+    return a, g, c, nle, (V, e)
 
 
 def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, const: np.ndarray, b: np.ndarray,
