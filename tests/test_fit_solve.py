@@ -298,6 +298,26 @@ def test_deformation_moves_an_unlike_car_onto_its_marks(library, topology):
     assert not np.allclose(pts[kp], mix.wireframe.control_points[kp])
 
 
+@pytest.mark.parametrize("azimuth", [30, 150])
+def test_deformation_moves_a_pillar_along_the_car(library, topology, azimuth):
+    """The MPV (left out) has its B-pillar ~130 mm further back than any mix puts it: the
+    field's local part, mostly along the car, takes the marked pillar foot there instead of
+    across the picture to the nearest point of its line of sight."""
+    t, loo, truth = _left_out(library, "Chrysler Pacifica")
+    wb = library.template_wheelbase_mm[t]
+    slots, uv = _observe(truth, View(azimuth, 10), scale=0.5, noise=1.0)
+    kps = {s.name: p for s, p in zip(slots, uv)}
+    assert "b_pillar_sill" in kps
+    i = [k.name for k in topology.keypoints].index("b_pillar_sill")
+    kp = topology.keypoint_point_indices
+    errors = []
+    for deform in (False, True):
+        res = fit_wireframe(kps, View(azimuth, 10), loo, wheelbase_mm=wb, refine=False, deform=deform)
+        errors.append(np.linalg.norm(res.wireframe.control_points[kp] - truth[kp] * wb / 1000, axis=1))
+    assert errors[0][i] > 100 and errors[1][i] < 60, (errors[0][i], errors[1][i])
+    assert errors[1].mean() < errors[0].mean()
+
+
 def test_deformation_leaves_a_library_car_alone(library, topology):
     """Marks the mix already meets (a library model, no noise) move nothing."""
     truth = library.points(library.original(4))
