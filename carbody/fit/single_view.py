@@ -126,8 +126,7 @@ class FitResult:
         post = self.solution.posterior
         if post is None:
             return None
-        idx = load_topology().keypoint_point_indices
-        cov = keypoint_covariance(prepared(self.library, self.method), idx, post)
+        cov = keypoint_covariance(post)
         sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None)) * self.mm_per_unit
         names = [k.name for k in load_topology().keypoints]
         out = {n: [float(v) for v in row] for n, row in zip(names, sd)}

@@ -217,6 +217,7 @@ class ShapePosterior:
         V: (q, r) right singular vectors; e: (r,) squared singular values; lam: λ.
         g: the image scale in the solve's units (the weighted mean over centres).
         centres: (T, q) each component's posterior mean a_t; weights: (T,), sum 1.
+        keypoint_basis: (3·35, q) the shape basis' keypoint rows (a's effect on the keypoints).
         inflation: the covariance's scale factor (≥ 1).
         view_spread: (n, 3·35) or None: each refined view angle's share, the keypoints' move
             per one standard deviation of that angle (:func:`carbody.fit.single_view` adds it
@@ -229,6 +230,7 @@ class ShapePosterior:
     g: float
     centres: np.ndarray
     weights: np.ndarray
+    keypoint_basis: np.ndarray
     inflation: float = 1.0
     view_spread: np.ndarray | None = None
 
@@ -485,12 +487,12 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
         a = w @ model.group_means + delta
         g = float(w @ gs)
         prior_part = np.sqrt(prior_weight) * delta
-        posterior = ShapePosterior(V, e, prior_weight, g, model.group_means + deltas, w)
+        posterior = ShapePosterior(V, e, prior_weight, g, model.group_means + deltas, w, Bk)
     else:
         a, g, _, evidence, (V, e) = _map_coefficients(am, AB, b, prior_weight)
         a, g, evidence = a[0], float(g[0]), float(evidence[0])
         prior_part = np.sqrt(prior_weight) * a
-        posterior = ShapePosterior(V, e, prior_weight, g, a[None], np.ones(1))
+        posterior = ShapePosterior(V, e, prior_weight, g, a[None], np.ones(1), Bk)
     if not g > 0:
         raise FitError("no shape reproduces these keypoints at a positive image scale "
                        "(check the view angle and which side each keypoint name is on)")
@@ -508,7 +510,7 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
                        residual_vector=rvec, evidence=evidence, posterior=posterior)
 
 
-def keypoint_covariance(model: ShapeModel, point_indices: np.ndarray, posterior: ShapePosterior) -> np.ndarray:
+def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     """(35, 3, 3) float: the posterior covariance of each keypoint, normalised units².
 
     Keypoints the view does not see keep the library's spread; those it sees are pinned by the
@@ -516,8 +518,7 @@ def keypoint_covariance(model: ShapeModel, point_indices: np.ndarray, posterior:
     uncertainty joins it (``view_spread``); the photo-matching deformation that follows does
     not. BENCHMARKS.md measures how it compares with the leave-one-out errors.
     """
-    q = model.basis.shape[1]
-    Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
+    Bk = posterior.keypoint_basis
     BV = Bk @ posterior.V
     shrink = posterior.g ** 2 * posterior.e / (posterior.lam + posterior.g ** 2 * posterior.e)
     cov = Bk @ Bk.T - (BV * shrink) @ BV.T
@@ -526,7 +527,7 @@ def keypoint_covariance(model: ShapeModel, point_indices: np.ndarray, posterior:
     cov *= posterior.inflation
     if posterior.view_spread is not None:  # already at the marks' own noise level
         cov += posterior.view_spread.T @ posterior.view_spread
-    n = len(point_indices)
+    n = len(Bk) // 3
     return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
 
 
