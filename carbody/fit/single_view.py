@@ -431,9 +431,9 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
         refined, sol = view, solve_at(view)
     if sol.view is not None:
         refined = sol.view  # a pinhole view's aim, settled on the fitted car
-    if free and sol.posterior is not None:
-        sol.posterior.view_spread = _view_spread(solve_at, refined, sol,
-                                                 tuple(f for f in free if f in ("azimuth", "elevation")))
+    angles = tuple(f for f in free if f in ("azimuth", "elevation", "roll"))
+    if angles and sol.posterior is not None:
+        sol.posterior.view_spread = _view_spread(solve_at, refined, sol, angles)
     refined = View(float(refined.azimuth) % 360.0, float(refined.elevation), float(refined.roll),
                    refined.distance, refined.aim)
     if sol.shape is None:
