@@ -220,7 +220,7 @@ class ShapePosterior:
         keypoint_basis: (3·35, q) the shape basis' keypoint rows (a's effect on the keypoints).
         inflation: the covariance's scale factor (≥ 1).
         view_spread: (n, 3·35) or None: each refined view angle's share, the keypoints' move
-            per one standard deviation of that angle (:func:`carbody.fit.single_view` adds it
+            per one standard deviation of that angle (`carbody.fit.single_view._view_spread` adds it
             after the refinement); its outer products join the covariance.
     """
 
