@@ -233,7 +233,20 @@ def calibration(rows: list[dict]) -> str:
         rho = spearmanr([r["mean_mm"] for r in rs], [np.mean(r["expected_mm"]) for r in rs])[0]
         out.append(f"| {lab} | {err.mean():.1f} | {exp.mean():.1f} | {np.median(ratio):.2f} "
                    f"| {100 * np.mean(ratio <= 1):.0f} % | {100 * np.mean(ratio <= 2):.0f} % | {rho:.2f} |")
-    return "\n".join(out) if len(out) > 5 else ""
+    if len(out) <= 5:
+        return ""
+    # where the estimate is too high or too low: the default case, view by view
+    lab = next((lab for lab in dict.fromkeys(case_label(r) for r in rows)
+                if lab.startswith("mixture, view known") and "λ=" not in lab), None)
+    if lab is not None:
+        rs = [r for r in rows if case_label(r) == lab and r.get("expected_mm") is not None]
+        angles = sorted({r["azimuth"] for r in rs})
+        out += ["", f"{lab}, mean real / mean expected error (mm) by view:", "",
+                "| " + " | ".join(f"{a}°" for a in angles) + " |", "|" + "---|" * len(angles),
+                "| " + " | ".join(f"{np.mean([r['mean_mm'] for r in rs if r['azimuth'] == a]):.0f} / "
+                                  f"{np.mean([np.mean(r['expected_mm']) for r in rs if r['azimuth'] == a]):.0f}"
+                                  for a in angles) + " |"]
+    return "\n".join(out)
 
 
 def table(rows: list[dict], label: str) -> str:
