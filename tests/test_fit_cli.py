@@ -62,7 +62,7 @@ def test_fit_writes_step_overlay_and_report(photo):
     proc = run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
                    "--exclude-template", "Volvo V60", "--truth", "Volvo V60",
                    "-o", str(out / "car.step"), "--overlay", str(out / "ov.png"), "--report", str(out / "r.json"),
-                   check=True)
+                   "--uncertainty", str(out / "u.png"), check=True)
     assert "fitted" in proc.stdout
     from carbody.view.predict import read_image
     from carbody.occ.step_curves import read_curves_step
@@ -86,6 +86,7 @@ def test_fit_writes_step_overlay_and_report(photo):
     assert set(expected) == set(rep["error_mm"]) and 0 < rep["expected_error_mm_mean"] < 200
     assert set(rep["keypoint_sd_mm"]) == set(rep["keypoints_mm"])
     assert "expected 3D keypoint error" in proc.stdout
+    assert read_image(out / "u.png").shape[0] > 500  # the four-view drawing with expected errors
 
 
 def test_visible_keypoints_command():
@@ -127,6 +128,9 @@ def test_bad_inputs_exit_2_with_one_line_and_no_output(photo, tmp_path):
     assert "neither a number" in _bad(photo, tmp_path, extra=("--distance", "far"))
     assert "positive" in _bad(photo, tmp_path, extra=("--distance", "-3"))
     assert "inside or at the car" in _bad(photo, tmp_path, extra=("--distance", "900"))
+    drawing = tmp_path / "u.png"
+    assert "no posterior" in _bad(photo, tmp_path, extra=("--method", "paper", "--uncertainty", str(drawing)))
+    assert not drawing.exists()
 
 
 def test_fit_with_a_camera_distance_reports_it(photo):

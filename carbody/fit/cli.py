@@ -73,6 +73,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--output", "-o", required=True, help="wireframe STEP file to write")
     p.add_argument("--overlay", help="PNG: photo + annotated (red) / reprojected (green) keypoints + wireframe")
     p.add_argument("--report", help="JSON report: view, 3D keypoints, residuals, weights, errors")
+    p.add_argument("--uncertainty", metavar="PNG",
+                   help="four-view drawing of the fitted wireframe with each keypoint's expected "
+                        "error as a 1σ ellipse (not with --method paper)")
     p.add_argument("--truth", help="ground truth (template name or wireframe STEP): adds the 3D "
                                    "error per keypoint to the report and an error bar chart")
     p.add_argument("--name", default=None, help="product name in the STEP file (default: image stem)")
@@ -121,9 +124,12 @@ def run_fit(args: argparse.Namespace) -> int:
     for name in args.exclude_template:
         library = library.without(_match_template(library, name))
     truth = _truth(args.truth) if args.truth else None
-    for out in (args.output, args.overlay, args.report):
+    for out in (args.output, args.overlay, args.report, args.uncertainty):
         if out and not Path(out).resolve().parent.is_dir():
             raise FitError(f"{out}: its folder does not exist")
+    if args.uncertainty and args.method == "paper":
+        raise FitError("--uncertainty needs a Gaussian-prior method (mixture or gauss): "
+                       "the paper's solve has no posterior")
     focal, focal_source = focal_length_px(args.image, (w, h), args.focal_35mm)
     result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                            method=args.method, refine=not args.no_refine,
@@ -137,6 +143,13 @@ def run_fit(args: argparse.Namespace) -> int:
     write_wireframe(args.output, result.wireframe, both_halves=True)
     if overlay is not None:
         write_image(args.overlay, overlay)
+    if args.uncertainty:
+        from carbody.templates.drawing import draw_four_views
+        from carbody.topology import load_topology
+
+        sd = result.keypoint_sd_mm()
+        draw_four_views(result.wireframe.control_points, args.uncertainty, result.wireframe.name,
+                        keypoint_sd_mm=np.array([sd[k.name] for k in load_topology().keypoints]))
     if args.report:
         write_json(args.report, report)
         if truth is not None:

@@ -18,22 +18,34 @@ VIEWS = (
 
 
 def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "",
-                    topology: Topology | None = None) -> Path:
+                    topology: Topology | None = None, keypoint_sd_mm: np.ndarray | None = None) -> Path:
     """Write a PNG with the front, side, top and rear views and the 35 keypoints labelled.
 
     Args:
         control_points: (280, 3) float, mm, car frame (left half).
-        path: PNG file to write.
+        path: PNG file to write (written whole or not at all).
         title: heading of the drawing (the car's name).
+        keypoint_sd_mm: (35, 3) float or None: each keypoint's standard deviation per axis (a
+            fit's :meth:`~carbody.fit.single_view.FitResult.keypoint_sd_mm`): the keypoints are
+            coloured by their expected 3D error (a colour bar gives the scale) and each gets its
+            1σ ellipse in every view — which of the car's dimensions the photo fixed and which
+            are the library's guess.
     Returns:
         the written path.
     """
+    import os
+
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Ellipse
 
     topo = topology or load_topology()
+    if keypoint_sd_mm is not None:
+        expected = np.linalg.norm(keypoint_sd_mm, axis=1)
+        cmap = plt.get_cmap("RdYlGn_r")
+        norm = matplotlib.colors.Normalize(0.0, max(float(expected.max()), 1.0))
     curves = sample_curves(control_points)
     mirror = curves * np.array([-1.0, 1.0, 1.0])
     kp = control_points[topo.keypoint_point_indices]
@@ -45,13 +57,18 @@ def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "
         for group, colour in ((curves, "#1f4e9c"), (mirror, "#9fb3d6")) if both else ((curves, "#1f4e9c"),):
             for c in group:
                 ax.plot(hs * c[:, hi], vs * c[:, vi], color=colour, lw=1.2)
-        for k, p in zip(topo.keypoints, kp):
+        for i, (k, p) in enumerate(zip(topo.keypoints, kp)):
             facing = (name.startswith("front") and p[1] < 0.5 * control_points[:, 1].max() / 2) or \
                      (name.startswith("rear") and p[1] > 0.5 * control_points[:, 1].max()) or \
                      name.startswith(("side", "top"))
             if not facing:
                 continue
-            ax.plot(hs * p[hi], vs * p[vi], "o", color="#d62728", ms=3.5)
+            colour = "#d62728"
+            if keypoint_sd_mm is not None:
+                colour = cmap(norm(expected[i]))
+                ax.add_patch(Ellipse((hs * p[hi], vs * p[vi]), 2 * keypoint_sd_mm[i, hi], 2 * keypoint_sd_mm[i, vi],
+                                     facecolor=colour, edgecolor=colour, alpha=0.25, lw=0.8))
+            ax.plot(hs * p[hi], vs * p[vi], "o", color=colour, ms=5 if keypoint_sd_mm is not None else 3.5)
             ax.annotate(str(k.id), (hs * p[hi], vs * p[vi]), fontsize=7, color="#d62728",
                         xytext=(2, 2), textcoords="offset points")
         ax.set_title(name)
@@ -60,11 +77,18 @@ def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "
         ax.tick_params(labelsize=7)
     legend = fig.add_subplot(grid[:, 2])
     legend.axis("off")
+    if keypoint_sd_mm is not None:
+        bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap), ax=legend, location="bottom",
+                           fraction=0.05, pad=0.02)
+        bar.set_label("expected 3D error of the keypoint (mm)")
     legend.text(0, 1, "\n".join(f"{k.id:2d}  {k.name}" for k in topo.keypoints),
                 va="top", family="monospace", fontsize=8.5)
-    fig.suptitle(f"{title}  (mm; front wheel centre at y = 0, wheel centres at z = 0)")
+    note = ", keypoints coloured by their expected error, 1σ ellipses" if keypoint_sd_mm is not None else ""
+    fig.suptitle(f"{title}  (mm; front wheel centre at y = 0, wheel centres at z = 0{note})")
     fig.tight_layout()
     out = Path(path)
-    fig.savefig(out, dpi=90)
+    tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp.png")
+    fig.savefig(tmp, dpi=90)
     plt.close(fig)
+    os.replace(tmp, out)
     return out
