@@ -214,7 +214,7 @@ def test_fit_result_reports(library):
     assert set(keypoint_slots()) >= set(kps)
 
 
-def test_expected_error_is_large_where_the_view_cannot_see(library):
+def test_expected_error_is_large_where_the_view_cannot_see(library, tmp_path):
     """The fit's own uncertainty: a front view cannot see the car's length, a level side view
     not its width; the keypoints' expected error says so, axis by axis."""
     t, loo, truth = _left_out(library, "Volkswagen Golf Mk7")
@@ -233,6 +233,11 @@ def test_expected_error_is_large_where_the_view_cannot_see(library):
     slots, uv = _observe(truth, View(30), noise=1.0)
     paper = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, 30, loo, method="paper", refine=False)
     assert paper.expected_error_mm() is None and paper.keypoint_sd_mm() is None
+    from carbody.errors import FitError
+
+    with pytest.raises(FitError, match="no posterior"):
+        paper.draw_expected_errors(tmp_path / "u.png")
+    assert not (tmp_path / "u.png").exists()
 
 
 def test_expected_error_tracks_the_real_error(library, topology):

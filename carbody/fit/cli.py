@@ -144,12 +144,7 @@ def run_fit(args: argparse.Namespace) -> int:
     if overlay is not None:
         write_image(args.overlay, overlay)
     if args.uncertainty:
-        from carbody.templates.drawing import draw_four_views
-        from carbody.topology import load_topology
-
-        sd = result.keypoint_sd_mm()
-        draw_four_views(result.wireframe.control_points, args.uncertainty, result.wireframe.name,
-                        keypoint_sd_mm=np.array([sd[k.name] for k in load_topology().keypoints]))
+        result.draw_expected_errors(args.uncertainty)
     if args.report:
         write_json(args.report, report)
         if truth is not None:

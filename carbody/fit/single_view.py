@@ -7,6 +7,7 @@ return the new model in millimetres with everything the overlay and the report n
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -142,6 +143,22 @@ class FitResult:
         if sd is None:
             return None
         return {k.name: float(np.linalg.norm(sd[k.name])) for k in load_topology().keypoints}
+
+    def draw_expected_errors(self, path: str | Path) -> Path:
+        """Write a PNG of the fitted car in four views, each keypoint coloured by its expected
+        error with its 1σ ellipse (:func:`carbody.templates.drawing.draw_four_views`).
+
+        Raises:
+            FitError: the ``"paper"`` method, which has no posterior.
+        """
+        from carbody.templates.drawing import draw_four_views
+
+        sd = self.keypoint_sd_mm()
+        if sd is None:
+            raise FitError("--uncertainty needs a Gaussian-prior method (mixture or gauss): "
+                           "the paper's solve has no posterior")
+        return draw_four_views(self.wireframe.control_points, path, self.wireframe.name,
+                               keypoint_sd_mm=np.array([sd[k.name] for k in load_topology().keypoints]))
 
     def reprojected(self) -> np.ndarray:
         """(k, 2) float, pixels of the fitted annotated keypoints under the refined camera."""
