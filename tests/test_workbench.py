@@ -130,6 +130,8 @@ def test_the_macro_reconstructs_headless_and_the_document_matches_the_step_files
     proc = subprocess.run(["freecadcmd", str(WORKBENCH / "carbody_reconstruct.FCMacro")], capture_output=True,
                           text=True, timeout=600, env=env, cwd=tmp_path)
     assert saved.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    # the run's summary reaches FreeCAD's report view: how sure the fit is, keypoint by keypoint
+    assert "expected 3D keypoint error" in proc.stdout + proc.stderr, proc.stdout[-2000:]
     from tests.conftest import run_cli
 
     curves = json.loads(run_cli("parts", str(out / "wireframe.step"), "--json", check=True).stdout)["curves"]

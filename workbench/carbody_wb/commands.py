@@ -75,8 +75,8 @@ class Reconstruct(_Command):
             raise core.CarbodyWorkbenchError("load a photo and its keypoints first")
         out = QtGui.QFileDialog.getExistingDirectory(None, "Output folder")
         if out:
-            _, _, report = core.reconstruct(_doc(), image, keypoints, out)
-            FreeCAD.Console.PrintMessage(f"carbody: view {report.get('view', {})}\n")
+            core.reconstruct(_doc(), image, keypoints, out)
+            FreeCAD.Console.PrintMessage(core.summary(out))
             FreeCADGui.SendMsgToActiveView("ViewFit")
 
 

@@ -143,3 +143,10 @@ def reconstruct(doc, image, keypoints, out_dir, view=None, wheelbase_mm=None, co
     with open(os.path.join(out_dir, "report.json")) as f:
         report = json.load(f)
     return wire, body, report
+
+
+def summary(out_dir):
+    """The reconstruction's ``summary.txt`` (view, camera, residuals, expected and, with a
+    truth, real keypoint errors, body checks): what the report view shows after a run."""
+    with open(os.path.join(out_dir, "summary.txt")) as f:
+        return f.read()
