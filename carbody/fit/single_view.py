@@ -28,59 +28,18 @@ from carbody.wireframe import Wireframe
 _PREPARED: dict[tuple, object] = {}
 
 
-def prepared(library: Library, method: str, wheelbase_mm: float | None = None):
+def prepared(library: Library, method: str):
     """The library's :class:`KeypointBasis` (``"paper"``) or :class:`ShapeModel` (``"gauss"``),
-    built once per library and method; told the car's wheelbase, the shape model of cars sized
-    in mm (:func:`sized_shape_model`)."""
+    built once per library and method."""
     method = "gauss" if method == "mixture" else method  # same shape model
-    if method == "gauss" and wheelbase_mm is not None:
-        return _cached(library, ("sized", float(wheelbase_mm)), lambda: sized_shape_model(library, wheelbase_mm))
-    idx = load_topology().keypoint_point_indices
-    return _cached(library, method, lambda: KeypointBasis.from_shapes(library.S, idx) if method == "paper"
-                   else ShapeModel.from_shapes(library.S, idx, groups=library.template_index))
-
-
-def _cached(library: Library, what, build):
-    """``build()``, once per library (keyed by its S array) and ``what``."""
-    key = (id(library.S), library.S.shape, what)
+    key = (id(library.S), library.S.shape, method)
     if key not in _PREPARED:
-        if len(_PREPARED) > 16:
+        if len(_PREPARED) > 8:
             _PREPARED.clear()
-        _PREPARED[key] = (library.S, build())
+        idx = load_topology().keypoint_point_indices
+        _PREPARED[key] = (library.S, KeypointBasis.from_shapes(library.S, idx) if method == "paper"
+                          else ShapeModel.from_shapes(library.S, idx, groups=library.template_index))
     return _PREPARED[key][1]
-
-
-#: Which coordinates (x, y, z) of a car the shape model told the wheelbase knows in mm rather
-#: than in wheelbases: the width and the height (a car is 1.7–2.0 m wide and about as tall as its
-#: class, whatever its wheelbase), not the length (overhangs and cabin grow with the wheelbase).
-SIZED_IN_MM = (True, False, True)
-
-
-def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
-    """The shape model for a car of a known wheelbase, in normalised units.
-
-    The library's models are normalised to a wheelbase of 1000, which also scales their widths
-    and heights by 1000 / their own wheelbase: the pickup (3.7 m) comes out narrow and low, the
-    roadster (2.3 m) wide and tall, so a prior in those units is loose exactly where a view
-    cannot see — the width on a side view, the size on a front one, and on a level view the
-    width that trades against the azimuth. Here the principal components are taken with widths
-    and heights in mm (``SIZED_IN_MM``) and lengths in wheelbases, then read at this car's
-    wheelbase. A wrong wheelbase therefore changes the car's shape, not only its size.
-    Measured on the leave-one-out benchmark (BENCHMARKS.md).
-    """
-    in_mm = np.tile(SIZED_IN_MM, library.S.shape[0] // 3)
-
-    def build() -> ShapeModel:
-        S = np.where(in_mm[:, None], library.S * (library.model_wheelbase_mm / NORMALISED_WHEELBASE), library.S)
-        return ShapeModel.from_shapes(S, load_topology().keypoint_point_indices, groups=library.template_index)
-
-    model = _cached(library, "sized", build)
-    unit = np.where(in_mm, NORMALISED_WHEELBASE / wheelbase_mm, 1.0)
-    mean = model.mean * unit
-    keypoints = mean.reshape(-1, 3)[load_topology().keypoint_point_indices]
-    size = float(np.sqrt(np.mean(np.sum((keypoints - keypoints.mean(axis=0)) ** 2, axis=1))))
-    return ShapeModel(mean=mean, basis=model.basis * unit[:, None], size=size,
-                      to_weights=model.to_weights, group_means=model.group_means)
 
 
 def prepared_field(library: Library) -> DeformationField:
@@ -463,7 +422,7 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
     read at ``distance_wheelbase_mm`` (default the library's mean wheelbase). A ``view`` that
     already has a distance (a previous fit's) starts the refinement as it is, and ``scan``
     False skips the refinement's coarse scan."""
-    model = prepared(library, method, wheelbase_mm)
+    model = prepared(library, method)
     idx = load_topology().keypoint_point_indices
 
     if method == "paper":
