@@ -130,10 +130,9 @@ class Reconstruction:
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm",
         ]
         if "expected_error_mm" in fit:
-            least = sorted(fit["expected_error_mm"], key=lambda n: -fit["expected_error_mm"][n])[:3]
-            lines.append(f"expected 3D keypoint error (the fit's own estimate): mean "
-                         f"{fit['expected_error_mm_mean']:.0f} mm; least sure: "
-                         + ", ".join(f"{n} ({fit['expected_error_mm'][n]:.0f} mm)" for n in least))
+            from carbody.fit.report import expected_error_line
+
+            lines.append(expected_error_line(fit["expected_error_mm"]))
         if fit["suspect_keypoints"]:
             lines.append("the fitted car passes far from these marks (check them): "
                          + ", ".join(f"{n} ({fit['residual_px'][n]:.0f} px)" for n in fit["suspect_keypoints"]))

@@ -101,13 +101,11 @@ def _truth(spec: str):
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from carbody.errors import FitError
     from carbody.camera import View, check_azimuth
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
-    from carbody.fit.report import build_report, draw_error_chart, write_json
+    from carbody.fit.report import build_report, draw_error_chart, expected_error_line, write_json
     from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
@@ -165,9 +163,7 @@ def run_fit(args: argparse.Namespace) -> int:
           f"wheelbase {result.wheelbase_mm:.0f} mm -> {args.output}")
     expected = result.expected_error_mm()
     if expected is not None:
-        least = sorted(expected, key=lambda n: -expected[n])[:3]
-        print(f"expected 3D keypoint error (the fit's own estimate): mean {np.mean(list(expected.values())):.0f} mm; "
-              "least sure: " + ", ".join(f"{n} ({expected[n]:.0f} mm)" for n in least))
+        print(expected_error_line(expected))
     suspects = result.suspect_keypoints()
     if suspects:
         res = result.residuals_px()

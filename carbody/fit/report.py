@@ -91,6 +91,16 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
     return report
 
 
+def expected_error_line(expected_mm: dict[str, float]) -> str:
+    """One line for a person: the mean of the fit's expected keypoint errors and the three
+    keypoints it is least sure of (``FitResult.expected_error_mm``, the report's
+    ``expected_error_mm``)."""
+    least = sorted(expected_mm, key=lambda n: -expected_mm[n])[:3]
+    return (f"expected 3D keypoint error (the fit's own estimate): mean "
+            f"{np.mean(list(expected_mm.values())):.0f} mm; least sure: "
+            + ", ".join(f"{n} ({expected_mm[n]:.0f} mm)" for n in least))
+
+
 def write_json(path: str | Path, data: dict) -> Path:
     """Write JSON atomically."""
     path = Path(path)

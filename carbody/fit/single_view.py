@@ -155,7 +155,7 @@ class FitResult:
 
         sd = self.keypoint_sd_mm()
         if sd is None:
-            raise FitError("--uncertainty needs a Gaussian-prior method (mixture or gauss): "
+            raise FitError("expected errors need a Gaussian-prior method (mixture or gauss): "
                            "the paper's solve has no posterior")
         return draw_four_views(self.wireframe.control_points, path, self.wireframe.name,
                                keypoint_sd_mm=np.array([sd[k.name] for k in load_topology().keypoints]))
