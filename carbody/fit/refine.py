@@ -8,7 +8,9 @@ objective is the solve's evidence (−log marginal likelihood of the view, the s
 out) when it has one (the Gaussian-prior methods; Nelder–Mead), else its residual (the paper's
 solve; bounded Gauss–Newton, trust-region reflective least squares). In an orthographic image
 the azimuth trades off against the car's depth, so the residual alone prefers views where the
-shape can bend to fit; the evidence charges for that freedom.
+shape can bend to fit; the evidence charges for that freedom. The fit adds a charge for a car
+wider, longer or taller than any template (:func:`carbody.fit.single_view.implausibility`):
+the Gaussian prior alone lets a side view steepen into a car a third as wide.
 
 Roll stays as given (level) by default: one orthographic view of a car whose shape is also being
 fitted cannot separate a degree of roll from a slightly different car: with roll free the

@@ -28,18 +28,108 @@ from carbody.wireframe import Wireframe
 _PREPARED: dict[tuple, object] = {}
 
 
-def prepared(library: Library, method: str):
+def prepared(library: Library, method: str, wheelbase_mm: float | None = None):
     """The library's :class:`KeypointBasis` (``"paper"``) or :class:`ShapeModel` (``"gauss"``),
-    built once per library and method."""
+    built once per library and method; told the car's wheelbase, the shape model of cars sized
+    in mm (:func:`sized_shape_model`)."""
     method = "gauss" if method == "mixture" else method  # same shape model
-    key = (id(library.S), library.S.shape, method)
+    if method == "gauss" and wheelbase_mm is not None:
+        return _cached(library, ("sized", float(wheelbase_mm)), lambda: sized_shape_model(library, wheelbase_mm))
+    idx = load_topology().keypoint_point_indices
+    return _cached(library, method, lambda: KeypointBasis.from_shapes(library.S, idx) if method == "paper"
+                   else ShapeModel.from_shapes(library.S, idx, groups=library.template_index))
+
+
+def _cached(library: Library, what, build):
+    """``build()``, once per library (keyed by its S array) and ``what``."""
+    key = (id(library.S), library.S.shape, what)
     if key not in _PREPARED:
-        if len(_PREPARED) > 8:
+        if len(_PREPARED) > 16:
             _PREPARED.clear()
-        idx = load_topology().keypoint_point_indices
-        _PREPARED[key] = (library.S, KeypointBasis.from_shapes(library.S, idx) if method == "paper"
-                          else ShapeModel.from_shapes(library.S, idx, groups=library.template_index))
+        _PREPARED[key] = (library.S, build())
     return _PREPARED[key][1]
+
+
+#: Which coordinates (x, y, z) of a car the shape model told the wheelbase knows in mm rather
+#: than in wheelbases: the width and the height (a car is 1.7–2.0 m wide and about as tall as its
+#: class, whatever its wheelbase), not the length (overhangs and cabin grow with the wheelbase).
+SIZED_IN_MM = (True, False, True)
+
+
+def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
+    """The shape model for a car of a known wheelbase, in normalised units.
+
+    The library's models are normalised to a wheelbase of 1000, which also scales their widths
+    and heights by 1000 / their own wheelbase: the pickup (3.7 m) comes out narrow and low, the
+    roadster (2.3 m) wide and tall, so a prior in those units is loose exactly where a view
+    cannot see — the width on a side view, the size on a front one, and on a level view the
+    width that trades against the azimuth. Here the principal components are taken with widths
+    and heights in mm (``SIZED_IN_MM``) and lengths in wheelbases, then read at this car's
+    wheelbase. A wrong wheelbase therefore changes the car's shape, not only its size.
+    Measured on the leave-one-out benchmark (BENCHMARKS.md).
+    """
+    in_mm = np.tile(SIZED_IN_MM, library.S.shape[0] // 3)
+
+    def build() -> ShapeModel:
+        S = np.where(in_mm[:, None], library.S * (library.model_wheelbase_mm / NORMALISED_WHEELBASE), library.S)
+        return ShapeModel.from_shapes(S, load_topology().keypoint_point_indices, groups=library.template_index)
+
+    model = _cached(library, "sized", build)
+    unit = np.where(in_mm, NORMALISED_WHEELBASE / wheelbase_mm, 1.0)
+    mean = model.mean * unit
+    keypoints = mean.reshape(-1, 3)[load_topology().keypoint_point_indices]
+    size = float(np.sqrt(np.mean(np.sum((keypoints - keypoints.mean(axis=0)) ** 2, axis=1))))
+    return ShapeModel(mean=mean, basis=model.basis * unit[:, None], size=size,
+                      to_weights=model.to_weights, group_means=model.group_means)
+
+
+#: The scale (a fraction of the bound passed) on which a view is charged for a fitted car wider
+#: or narrower, longer or shorter, taller or lower than every template (see :func:`implausibility`).
+EXTENT_TOLERANCE = 0.02
+
+
+def implausibility(shape: np.ndarray, library: Library, wheelbase_mm: float | None = None) -> float:
+    """What a view is charged (nats, added to its evidence) for a fitted car whose overall
+    width, length or height lies outside the range of the templates' own cars (the published
+    ones, not their expansions, which reach 0.7 × the width): ½·Σ(excess / (EXTENT_TOLERANCE ×
+    bound))², in wheelbases and, with the wheelbase told, in mm as well.
+
+    The Gaussian prior lets a car seen almost side-on (or head-on) be fitted at a steeper
+    elevation as a far narrower (shorter) car: the width moves the marks by sin(elevation),
+    and a few prior standard deviations of width (the expansions span 0.7–1.2 ×) cost less than a few
+    pixels of misfit on a car unlike the library's. No car is 0.6 m wide; this says so.
+    Within the range nothing changes. The range and EXTENT_TOLERANCE were chosen on the
+    leave-one-out benchmark (BENCHMARKS.md); a wider range (templates ± 10 %) did worse.
+    """
+    extents = _extents(np.asarray(shape, dtype=float)[:, None])[:, 0]
+    low, high = _cached(library, "extents", lambda: _template_extents(library))
+    charge = _excess(extents, low[0], high[0])
+    if wheelbase_mm is not None:
+        charge += _excess(extents * (wheelbase_mm / NORMALISED_WHEELBASE), low[1], high[1])
+    return charge
+
+
+def _extents(S: np.ndarray) -> np.ndarray:
+    """(3, N): overall width (both halves), length and height of (840, N) shape vectors."""
+    P = S.reshape(-1, 3, S.shape[1])
+    return np.stack([2.0 * P[:, 0].max(axis=0), np.ptp(P[:, 1], axis=0), np.ptp(P[:, 2], axis=0)])
+
+
+def _template_extents(library: Library) -> tuple[np.ndarray, np.ndarray]:
+    """((2, 3) lowest, (2, 3) highest) width, length and height of the templates' own models,
+    in wheelbases (row 0, normalised units) and in mm (row 1)."""
+    cols = np.flatnonzero(np.all(library.factors == 1.0, axis=1))
+    if not len(cols):  # a library without its templates' own models: all of them
+        cols = np.arange(library.S.shape[1])
+    e = _extents(np.asarray(library.S[:, cols], dtype=float))
+    both = np.stack([e, e * (library.model_wheelbase_mm[cols] / NORMALISED_WHEELBASE)])
+    return both.min(axis=2), both.max(axis=2)
+
+
+def _excess(values: np.ndarray, low: np.ndarray, high: np.ndarray) -> float:
+    """½·Σ((how far each value lies outside [low, high]) / (EXTENT_TOLERANCE × the bound))²."""
+    below, above = np.maximum(low - values, 0.0) / low, np.maximum(values - high, 0.0) / high
+    return float(0.5 * np.sum(((below + above) / EXTENT_TOLERANCE) ** 2))
 
 
 def prepared_field(library: Library) -> DeformationField:
@@ -422,7 +512,7 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
     read at ``distance_wheelbase_mm`` (default the library's mean wheelbase). A ``view`` that
     already has a distance (a previous fit's) starts the refinement as it is, and ``scan``
     False skips the refinement's coarse scan."""
-    model = prepared(library, method)
+    model = prepared(library, method, wheelbase_mm)
     idx = load_topology().keypoint_point_indices
 
     if method == "paper":
@@ -434,7 +524,9 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
             return sol
     else:
         def solve_at(v: View) -> MixSolution:
-            return solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture")
+            sol = solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture")
+            sol.evidence += implausibility(sol.shape, library, wheelbase_mm)
+            return sol
 
     free = DEFAULT_FREE if refine else ()
     if camera_distance_mm is not None:

@@ -56,9 +56,9 @@ PERSPECTIVE_ITERATIONS = 2
 MAX_PERSPECTIVE_FACTOR = 5.0
 
 #: Passes of the Gaussian-prior solve's scale search after its log grid; each evaluates 17 scales
-#: across the bracket and keeps the best's neighbours (8× narrower): 8⁻⁵ ≈ 3e-5 of the bracket,
-#: whose cost error (quadratic at the minimum) is far below anything a view is judged by.
-SCALE_PASSES = 5
+#: across the bracket and keeps the best's neighbours (8× narrower); a parabola through the last
+#: pass's best three then places the minimum (the cost is smooth and near-quadratic there).
+SCALE_PASSES = 2
 
 #: Fit methods, default first.
 METHODS = ("mixture", "gauss", "paper")
@@ -577,9 +577,14 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     steps = np.linspace(0.0, 1.0, 17)
     for _ in range(SCALE_PASSES):  # each pass narrows the bracket 8×, all centres at once
         grid = lo[:, None] + (hi - lo)[:, None] * steps
-        i = np.argmin(cost(grid), axis=1)
-        lo, hi = grid[rows, np.maximum(i - 1, 0)], grid[rows, np.minimum(i + 1, 16)]
-    g = (lo + hi) / 2.0
+        costs = cost(grid)
+        i = np.clip(np.argmin(costs, axis=1), 1, 15)
+        lo, hi = grid[rows, i - 1], grid[rows, i + 1]
+    # The vertex of the parabola through the best three of the last pass (equally spaced by h).
+    c0, c1, c2 = costs[rows, i - 1], costs[rows, i], costs[rows, i + 1]
+    h, curvature = (hi - lo) / 2.0, c0 - 2.0 * c1 + c2
+    shift = np.where(curvature > 0, 0.5 * (c0 - c2) / np.where(curvature > 0, curvature, 1.0), 0.0)
+    g = grid[rows, i] + np.clip(shift, -1.0, 1.0) * h
     cv = coeffs(g[:, None])[:, 0]
     r = g[:, None] * (ams + cv @ ABV.T) - b
     c = np.einsum("tm,tm->t", r, r) + lam * np.einsum("tq,tq->t", cv, cv)
