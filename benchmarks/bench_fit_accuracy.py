@@ -100,6 +100,7 @@ def left_out(t: int):
 
 def run_template(args) -> list[dict]:
     t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre = args
+    from carbody.errors import FitError
     from carbody.fit.single_view import fit_wireframe
     from carbody.topology import load_topology
 
@@ -133,10 +134,13 @@ def run_template(args) -> list[dict]:
             if not refine and not offset and lam is None and deform == (method != "paper"):
                 # the wheelbase the fit uses when none is given (the mix's own; told one, the
                 # shape prior is sized by it, so this is a fit of its own)
-                alone = fit_wireframe(kps, View(azimuth, given_elevation), loo, image_size=size,
-                                      method=method, refine=False, deform=False, principal_point=principal,
-                                      focal_px=focal if known_focal else None, **kw_camera)
-                estimate = 100.0 * (alone.wheelbase_mm / wb - 1.0)
+                try:
+                    alone = fit_wireframe(kps, View(azimuth, given_elevation), loo, image_size=size,
+                                          method=method, refine=False, deform=False, principal_point=principal,
+                                          focal_px=focal if known_focal else None, **kw_camera)
+                    estimate = 100.0 * (alone.wheelbase_mm / wb - 1.0)
+                except FitError:  # a told distance read at a wheelbase that puts the camera in the car
+                    estimate = float("nan")
             err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
             expected = res.expected_error_mm()
             expected = None if expected is None else [expected[k.name] for k in load_topology().keypoints]
@@ -362,7 +366,9 @@ def main(argv=None) -> int:
                     and r["wheelbase_estimate_pct"] is not None and r["deform"] == (method != "paper")
                     and r.get("camera") == ("told" if args.distance is not None else None)])
         if len(e):
-            print(f"| {method} | {e.mean():.1f} % | {np.median(e):.1f} % | {e.max():.1f} % |")
+            failed = f" ({int(np.sum(np.isnan(e)))} refused: camera inside the car)" if np.isnan(e).any() else ""
+            e = e[~np.isnan(e)]
+            print(f"| {method} | {e.mean():.1f} % | {np.median(e):.1f} % | {e.max():.1f} %{failed} |")
     print(per_car(rows))
     print(calibration(rows))
     for label in dict.fromkeys(case_label(r) for r in rows):

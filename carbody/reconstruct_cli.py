@@ -19,7 +19,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--view", type=float, default=None,
                    help="view azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side); "
                         "default: the shipped view classifier")
-    p.add_argument("--wheelbase", type=float, default=None, help="the car's wheelbase in mm (default: fitted)")
+    p.add_argument("--wheelbase", type=float, default=None,
+                   help="the car's wheelbase in mm (default: fitted); told, the fit also knows "
+                        "the car's width and height in mm")
     add_camera_arguments(p)
     p.add_argument("--truth", default=None, help="ground truth wireframe STEP or template name: adds 3D errors")
     p.add_argument("--name", default=None, help="the car's name in the STEP files (default: photo file stem)")

@@ -160,6 +160,18 @@ def test_off_centre_car_with_unknown_focal_length_and_distance(library, topology
     assert np.linalg.norm(_normalised(res)[kp] - truth[kp], axis=1).mean() < 15
 
 
+def test_a_focal_length_that_puts_the_camera_in_the_car_is_dropped(library):
+    """The pickup's rear, off the photo's centre, neither focal length nor distance known: one
+    focal length the search tries makes the turned fit's best camera sit inside the car. That
+    turn is dropped; the fit goes on (it stopped with an AngleError before)."""
+    t, loo, truth = _left_out(library, "Ford F-150 SuperCrew 5.5 ft")
+    res = fit_wireframe(off_centre_photo(truth, View(180, 10)), View(180, 10), loo, image_size=(2000, 1000),
+                        wheelbase_mm=library.template_wheelbase_mm[t], camera_distance_mm="auto",
+                        principal_point="centre")
+    assert res.focal_px is not None and abs(res.view.azimuth - 180) < 10
+    assert np.mean(list(res.residuals_px().values())) < 3
+
+
 def test_misplaced_or_swapped_marks_are_named(library):
     """A mark 50 px off, or two names swapped left for right, stand out of the residuals; a clean
     set of marks on a left-out car has no suspect."""

@@ -59,7 +59,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="camera roll of a tilted photo, degrees (kept as given: the refinement "
                         "moves azimuth and elevation only)")
     p.add_argument("--wheelbase", type=float, default=None,
-                   help="real wheelbase, mm (default: the fitted mix of the templates' own)")
+                   help="real wheelbase, mm (default: the fitted mix of the templates' own); "
+                        "told, the fit also knows the car's width and height in mm")
     p.add_argument("--exclude-template", action="append", default=[], metavar="NAME",
                    help="drop a template and its expansions from the library (repeatable)")
     p.add_argument("--method", choices=METHODS, default=METHODS[0],

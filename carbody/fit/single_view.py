@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from carbody.errors import FitError
+from carbody.errors import AngleError, FitError
 from carbody.camera import View, apply_homography, look_at_homography, project
 from carbody.fit.deform import DeformationField
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
@@ -311,7 +311,10 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         view: the view (or its azimuth in degrees, 0–360).
         library: the model library (default :func:`carbody.library.load_library`).
         image_size: (width, height) px; keypoints off the image are refused.
-        wheelbase_mm: real wheelbase; default the fitted mix of the templates' own.
+        wheelbase_mm: real wheelbase; default the fitted mix of the templates' own. Told, the
+            Gaussian-prior methods also know the car's width and height in mm
+            (:func:`sized_shape_model`), so a wrong one bends the shape a little, not only
+            its size.
         method: ``"mixture"`` (a Gaussian shape prior around each template, default),
             ``"gauss"`` (one around the library mean) or ``"paper"`` (plain ΣH = 1,
             0 ≤ H ≤ 1); see :mod:`carbody.fit.solve`.
@@ -414,11 +417,14 @@ def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np
         if np.degrees(np.arccos(min(1.0, float(to_car @ looking)))) < PRINCIPAL_TOLERANCE_DEG:
             break  # the camera already looks at the car
         looking, to_turned = to_car, look_at_homography(aim_px, principal, focal)
-        result = _fit_checked(**{**fit, "uv": apply_homography(to_turned, uv),
-                                 "view": fit["view"] if rescan else result.view},
-                              distance_wheelbase_mm=result.wheelbase_mm, scan=rescan)
-        rescan = False
-        _in_photo(result, to_turned, uv, given)
+        try:
+            turned = _fit_checked(**{**fit, "uv": apply_homography(to_turned, uv),
+                                     "view": fit["view"] if rescan else result.view},
+                                  distance_wheelbase_mm=result.wheelbase_mm, scan=rescan)
+            _in_photo(turned, to_turned, uv, given)
+        except AngleError:
+            break  # this turn's best camera sits in the car (a wild focal length): keep the last fit
+        result, rescan = turned, False
         result.focal_px, result.camera_turn_deg = focal, float(np.degrees(np.arccos(looking[2])))
     return result
 
