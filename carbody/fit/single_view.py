@@ -55,6 +55,11 @@ def _cached(library: Library, what, build):
 #: class, whatever its wheelbase), not the length (overhangs and cabin grow with the wheelbase).
 SIZED_IN_MM = (True, False, True)
 
+#: The width expansions the sized model is built from: the library's run 0.7–1.2 × each
+#: template's width, 1.2–2.4 m in mm, where real cars are 1.7–2.1 m; those within this range
+#: keep the prior's width spread a real car's (BENCHMARKS.md: narrower, or all, did worse).
+SIZED_WIDTH_FACTORS = (0.9, 1.1)
+
 
 def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
     """The shape model for a car of a known wheelbase, in normalised units.
@@ -65,22 +70,26 @@ def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
     cannot see — the width on a side view, the size on a front one, and on a level view the
     width that trades against the azimuth. Here the principal components are taken with widths
     and heights in mm (``SIZED_IN_MM``) and lengths in wheelbases, then read at this car's
-    wheelbase. A wrong wheelbase therefore changes the car's shape, not only its size.
-    Measured on the leave-one-out benchmark (BENCHMARKS.md).
+    wheelbase, from the models whose width factor lies within ``SIZED_WIDTH_FACTORS``. A wrong
+    wheelbase therefore changes the car's shape, not only its size. Measured on the
+    leave-one-out benchmark (BENCHMARKS.md).
     """
     in_mm = np.tile(SIZED_IN_MM, library.S.shape[0] // 3)
 
     def build() -> ShapeModel:
         S = np.where(in_mm[:, None], library.S * (library.model_wheelbase_mm / NORMALISED_WHEELBASE), library.S)
-        return ShapeModel.from_shapes(S, load_topology().keypoint_point_indices, groups=library.template_index)
+        width = library.factors[:, 3]
+        keep = (width >= SIZED_WIDTH_FACTORS[0] - 1e-9) & (width <= SIZED_WIDTH_FACTORS[1] + 1e-9)
+        return ShapeModel.from_shapes(S, load_topology().keypoint_point_indices, groups=library.template_index,
+                                      keep=keep if keep.any() else None)
 
     model = _cached(library, "sized", build)
     unit = np.where(in_mm, NORMALISED_WHEELBASE / wheelbase_mm, 1.0)
     mean = model.mean * unit
     keypoints = mean.reshape(-1, 3)[load_topology().keypoint_point_indices]
     size = float(np.sqrt(np.mean(np.sum((keypoints - keypoints.mean(axis=0)) ** 2, axis=1))))
-    return ShapeModel(mean=mean, basis=model.basis * unit[:, None], size=size,
-                      to_weights=model.to_weights, group_means=model.group_means)
+    return ShapeModel(mean=mean, basis=model.basis * unit[:, None], size=size, to_weights=model.to_weights,
+                      group_means=model.group_means, weight_offset=model.weight_offset)
 
 
 #: The scale (a fraction of the bound passed) on which a view is charged for a fitted car wider
@@ -394,9 +403,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     if focal_px is not None or camera_distance_mm != "auto":
         result = _looking_at_car(result, focal_px, **turn, rescan=True)
     else:
-        result = _looking_at_car(result, None, **turn)
+        unturned, result = result, _looking_at_car(result, None, **turn)
         if result.focal_px is not None:  # turned: now the focal length with the best evidence
-            result = _looking_at_car(result, _best_focal(result, turn), **turn, rescan=True)
+            result = _looking_at_car(unturned, _best_focal(result, unturned, turn), **turn, rescan=True)
     return _deformed(result) if deform else result
 
 
@@ -429,21 +438,29 @@ def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np
     return result
 
 
-def _best_focal(settled: FitResult, turn: dict) -> float:
+def _best_focal(settled: FitResult, unturned: FitResult, turn: dict) -> float:
     """The focal length (px) whose turn toward the car fits the marks with the best evidence:
     searched on a log scale within FOCAL_SEARCH_RANGE of the one ``settled`` (a turned fit)
-    used, each candidate one turn and refit from ``settled``'s view."""
+    used, each candidate one turn of the ``unturned`` fit and a refit from its view (a wrong
+    focal length can have turned ``settled``'s view far off). The evidence is rugged in the
+    focal length (each refit settles in its own view), so a grid of FOCAL_SEARCH_GRID first,
+    then a bounded search between the best one's neighbours."""
     from scipy.optimize import minimize_scalar
 
     scores = {}
 
     def score(log_f: float) -> float:
-        scores[log_f] = view_score(_looking_at_car(settled, float(np.exp(log_f)), **turn, passes=1).solution)
+        fit = _looking_at_car(unturned, float(np.exp(log_f)), **turn, passes=1)
+        scores[log_f] = np.inf if fit is unturned else view_score(fit.solution)  # a dropped turn
         return scores[log_f]
 
     centre, span = float(np.log(settled.focal_px)), float(np.log(FOCAL_SEARCH_RANGE))
-    minimize_scalar(score, bounds=(centre - span, centre + span), method="bounded",
-                    options={"xatol": FOCAL_SEARCH_TOLERANCE})
+    grid = np.linspace(centre - span, centre + span, FOCAL_SEARCH_GRID)
+    values = [score(x) for x in grid]
+    k = int(np.argmin(values))
+    if np.isfinite(values[k]):
+        minimize_scalar(score, bounds=(grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]),
+                        method="bounded", options={"xatol": FOCAL_SEARCH_TOLERANCE})
     best = min(scores, key=scores.get)
     return float(np.exp(best if scores[best] < view_score(settled.solution) else centre))
 
@@ -452,7 +469,10 @@ def _best_focal(settled: FitResult, turn: dict) -> float:
 #: this factor either side of the settled turn's …
 FOCAL_SEARCH_RANGE = 3.0
 
-#: … to this precision in log f (5 %).
+#: … first on a grid of this many (log-spaced, ×/÷ 1.44 apart) …
+FOCAL_SEARCH_GRID = 7
+
+#: … then to this precision in log f (5 %).
 FOCAL_SEARCH_TOLERANCE = 0.05
 
 

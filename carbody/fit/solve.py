@@ -115,9 +115,12 @@ class ShapeModel:
         basis: (840, q) float, principal directions scaled by their standard deviation, so a
             shape m + basis·a has a ~ N(0, I) over the library.
         size: as :attr:`KeypointBasis.size`.
-        to_weights: (N, q) float or None, maps a to affine library weights H − 1/N (reports).
+        to_weights: (N, q) float or None, maps a to affine library weights H − weight_offset
+            (reports).
         group_means: (T, q) float or None, each template's mean coefficients (the centres of
             the ``"mixture"`` prior).
+        weight_offset: (N,) float or None, the weights of the model's mean shape: 1/N for every
+            model (None), or 1/n for the n it was built from and 0 for the rest.
     """
 
     mean: np.ndarray
@@ -125,15 +128,28 @@ class ShapeModel:
     size: float
     to_weights: np.ndarray | None = None
     group_means: np.ndarray | None = None
+    weight_offset: np.ndarray | None = None
+
+    def weights(self, a: np.ndarray) -> np.ndarray | None:
+        """(N,) affine library weights (ΣH = 1) that reproduce the shape mean + basis·a."""
+        if self.to_weights is None:
+            return None
+        offset = 1.0 / len(self.to_weights) if self.weight_offset is None else self.weight_offset
+        return offset + self.to_weights @ a
 
     @classmethod
     def from_shapes(cls, S: np.ndarray, point_indices: np.ndarray, with_weights: bool = True,
-                    groups: np.ndarray | None = None) -> "ShapeModel":
+                    groups: np.ndarray | None = None, keep: np.ndarray | None = None) -> "ShapeModel":
         """Principal components of (840, N) normalised shapes (covariance in column chunks).
 
         Args:
             groups: (N,) int, each model's template, for the ``"mixture"`` prior's centres.
+            keep: (N,) bool, the models the statistics are taken over (default all); the
+                weights still index all N, zero on the others.
         """
+        every, templates = S.shape[1], None if groups is None else int(groups.max()) + 1
+        if keep is not None:
+            S, groups = S[:, keep], None if groups is None else groups[keep]
         n = S.shape[1]
         mean = S.mean(axis=1, dtype=np.float64)
         cov = np.zeros((S.shape[0], S.shape[0]))
@@ -157,12 +173,18 @@ class ShapeModel:
                       - mean @ (evecs[:, :q] / np.sqrt(evals[:q])))
             to_w = coeffs / n if with_weights else None
             if groups is not None:
-                count = np.bincount(groups)
-                centres = np.stack([np.bincount(groups, weights=c, minlength=len(count))
-                                    for c in coeffs.T], axis=1) / count[:, None]
+                count = np.bincount(groups, minlength=templates)
+                centres = np.stack([np.bincount(groups, weights=c, minlength=templates)
+                                    for c in coeffs.T], axis=1) / np.maximum(count, 1)[:, None]
+        offset = None
+        if keep is not None and to_w is not None:
+            full = np.zeros((every, q))
+            full[keep] = to_w
+            to_w, offset = full, np.where(keep, 1.0 / n, 0.0)
         m = mean.reshape(-1, 3)[point_indices]
         size = float(np.sqrt(np.mean(np.sum((m - m.mean(axis=0)) ** 2, axis=1))))
-        return cls(mean=mean, basis=basis, size=size, to_weights=to_w, group_means=centres)
+        return cls(mean=mean, basis=basis, size=size, to_weights=to_w, group_means=centres,
+                   weight_offset=offset)
 
 
 @dataclass
@@ -502,9 +524,7 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
     rvec = np.concatenate([((pred - z) / rho).ravel(), prior_part])
     # the centred image has 2k − 2 free rows
     posterior.inflation = max(1.0, float(rvec @ rvec) / (prior_weight * max(2 * len(z) - 2, 1)))
-    H = None
-    if model.to_weights is not None:
-        H = 1.0 / len(model.to_weights) + model.to_weights @ a
+    H = model.weights(a)
     return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
                        residual_vector=rvec, evidence=evidence, posterior=posterior)
