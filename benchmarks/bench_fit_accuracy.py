@@ -3,7 +3,8 @@
 For each template: drop it and its expansions from the library, view it at each of the 13 class
 angles (0°–180° by 15°, elevation 0), annotate the keypoints the view can see (from its own
 geometry) by projection onto a 1000 px wide image (the car spans 900 px) plus N(0, 1 px) noise,
-fit, and measure the 3D error of the 35 keypoints in mm at the true wheelbase.
+fit (told the true wheelbase, except in the rows "wheelbase not told", whose fitted car is
+rescaled to it), and measure the 3D error of the 35 keypoints in mm at the true wheelbase.
 
 Cases: the view known (no refinement, and refined from the true view), and the given angle off
 by +10° without and with the view refinement. Methods: ``paper`` (plain ΣH = 1, 0 ≤ H ≤ 1), ``gauss`` (one Gaussian shape
@@ -113,7 +114,7 @@ def run_template(args) -> list[dict]:
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
         for method, lam, offset, refine, deform, *extra in cases + [("mixture", l, 0.0, False, True) for l in lambdas]:
-            level, camera, principal, known_focal = list(extra) + [False, None, "car", None][len(extra):]
+            level, camera, principal, known_focal, wb_told = list(extra) + [False, None, "car", None, True][len(extra):]
             given_elevation = 0.0 if level else elevation
             kw_camera = {}
             if camera == "told":
@@ -125,13 +126,13 @@ def run_template(args) -> list[dict]:
             from carbody.camera import View
 
             res = fit_wireframe(kps, View(azimuth + offset, given_elevation), loo, image_size=size,
-                                wheelbase_mm=wb, method=method, refine=refine,
+                                wheelbase_mm=wb if wb_told else None, method=method, refine=refine,
                                 deform=deform and method != "paper", principal_point=principal,
                                 focal_px=focal if known_focal else None,
                                 **kw, **kw_camera)
             dt = time.perf_counter() - t0
             estimate = None
-            if not refine and not offset and lam is None and deform == (method != "paper"):
+            if not refine and not offset and lam is None and deform == (method != "paper") and wb_told:
                 # the wheelbase the fit uses when none is given (the mix's own; told one, the
                 # shape prior is sized by it, so this is a fit of its own)
                 try:
@@ -141,14 +142,15 @@ def run_template(args) -> list[dict]:
                     estimate = 100.0 * (alone.wheelbase_mm / wb - 1.0)
                 except FitError:  # a told distance read at a wheelbase that puts the camera in the car
                     estimate = float("nan")
-            err = np.linalg.norm(res.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
+            at_truth = wb / res.wheelbase_mm  # 1 when told; else the fit's own size read at the true one
+            err = np.linalg.norm(res.wireframe.control_points[idx] * at_truth - truth[idx] * wb / 1000, axis=1)
             expected = res.expected_error_mm()
-            expected = None if expected is None else [expected[k.name] for k in load_topology().keypoints]
+            expected = None if expected is None else [expected[k.name] * at_truth for k in load_topology().keypoints]
             rows.append({"template": name, "azimuth": azimuth, "method": method, "lambda": lam,
                          "offset": offset, "refine": refine, "deform": deform and method != "paper",
                          "given_elevation": given_elevation, "elevation": elevation, "camera": camera,
                          "principal": principal, "off_centre_deg": off_centre,
-                         "focal_known": bool(known_focal),
+                         "focal_known": bool(known_focal), "wheelbase_told": bool(wb_told),
                          "refined_distance_mm": None if res.view.distance is None
                          else res.view.distance * wb / 1000.0,
                          "k": len(kps),
@@ -183,6 +185,8 @@ def case_label(r: dict) -> str:
         lab += ", axis through the photo's centre"
     if r.get("focal_known"):
         lab += ", focal length known"
+    if not r.get("wheelbase_told", True):
+        lab += ", wheelbase not told"
     return lab
 
 
@@ -306,6 +310,10 @@ def main(argv=None) -> int:
     angles = (0, 30, 90, 150, 180) if args.quick else ANGLES
     cases = [("paper", None, 0.0, False, False), ("gauss", None, 0.0, False, True),
              ("gauss", None, 0.0, False, False), ("mixture", None, 0.0, False, True),
+             # a user who does not know the wheelbase: the plain shape model, the error at the
+             # fit's own size rescaled to the true wheelbase (its size error apart)
+             ("mixture", None, 0.0, False, True, False, None, "car", None, False),
+             ("mixture", None, OFFSET_DEG, True, True, True, None, "car", None, False),
              # what refining a known view costs: the image, not the start, sets where it settles
              ("mixture", None, 0.0, True, True),
              ("mixture", None, OFFSET_DEG, True, True),

@@ -298,7 +298,7 @@ def test_a_told_wheelbase_gives_a_level_side_view_its_width(library, topology, t
     told = fit_wireframe(kps, View(90), loo, wheelbase_mm=wb, refine=False)
     not_told = fit_wireframe(kps, View(90), loo, refine=False)
     width_error = [np.abs(_normalised(r)[kp, 0] - truth[kp, 0]).mean() * wb / 1000 for r in (told, not_told)]
-    assert width_error[0] < 0.5 * width_error[1], width_error
+    assert width_error[0] < 0.7 * width_error[1], width_error
     # the model's mean car is as wide in mm at any wheelbase, and its wheelbase is 1000
     half_widths = [sized_shape_model(loo, w).mean.reshape(-1, 3)[:, 0].max() * w / 1000 for w in (2300.0, 3700.0)]
     assert half_widths[0] == pytest.approx(half_widths[1])

@@ -37,7 +37,8 @@ def prepared(library: Library, method: str, wheelbase_mm: float | None = None):
         return _cached(library, ("sized", float(wheelbase_mm)), lambda: sized_shape_model(library, wheelbase_mm))
     idx = load_topology().keypoint_point_indices
     return _cached(library, method, lambda: KeypointBasis.from_shapes(library.S, idx) if method == "paper"
-                   else ShapeModel.from_shapes(library.S, idx, groups=library.template_index))
+                   else ShapeModel.from_shapes(library.S, idx, groups=library.template_index,
+                                               keep=real_widths(library)))
 
 
 def _cached(library: Library, what, build):
@@ -55,10 +56,19 @@ def _cached(library: Library, what, build):
 #: class, whatever its wheelbase), not the length (overhangs and cabin grow with the wheelbase).
 SIZED_IN_MM = (True, False, True)
 
-#: The width expansions the sized model is built from: the library's run 0.7–1.2 × each
-#: template's width, 1.2–2.4 m in mm, where real cars are 1.7–2.1 m; those within this range
-#: keep the prior's width spread a real car's (BENCHMARKS.md: narrower, or all, did worse).
-SIZED_WIDTH_FACTORS = (0.9, 1.1)
+#: The width expansions the Gaussian shape models are built from: the library's run 0.7–1.2 ×
+#: each template's width (1.2–2.4 m), where real cars are 1.7–2.1 m wide; those within this
+#: range keep the prior's width spread a real car's (BENCHMARKS.md: narrower, or all, did
+#: worse). The paper's solve mixes all of them.
+REAL_WIDTH_FACTORS = (0.9, 1.1)
+
+
+def real_widths(library: Library) -> np.ndarray | None:
+    """(N,) bool: the library's models whose width factor lies within REAL_WIDTH_FACTORS
+    (None: none does, a library without such expansions; use all)."""
+    width = library.factors[:, 3]
+    keep = (width >= REAL_WIDTH_FACTORS[0] - 1e-9) & (width <= REAL_WIDTH_FACTORS[1] + 1e-9)
+    return keep if keep.any() else None
 
 
 def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
@@ -70,7 +80,7 @@ def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
     cannot see — the width on a side view, the size on a front one, and on a level view the
     width that trades against the azimuth. Here the principal components are taken with widths
     and heights in mm (``SIZED_IN_MM``) and lengths in wheelbases, then read at this car's
-    wheelbase, from the models whose width factor lies within ``SIZED_WIDTH_FACTORS``. A wrong
+    wheelbase (both from the models of :func:`real_widths`). A wrong
     wheelbase therefore changes the car's shape, not only its size. Measured on the
     leave-one-out benchmark (BENCHMARKS.md).
     """
@@ -78,10 +88,8 @@ def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
 
     def build() -> ShapeModel:
         S = np.where(in_mm[:, None], library.S * (library.model_wheelbase_mm / NORMALISED_WHEELBASE), library.S)
-        width = library.factors[:, 3]
-        keep = (width >= SIZED_WIDTH_FACTORS[0] - 1e-9) & (width <= SIZED_WIDTH_FACTORS[1] + 1e-9)
         return ShapeModel.from_shapes(S, load_topology().keypoint_point_indices, groups=library.template_index,
-                                      keep=keep if keep.any() else None)
+                                      keep=real_widths(library))
 
     model = _cached(library, "sized", build)
     unit = np.where(in_mm, NORMALISED_WHEELBASE / wheelbase_mm, 1.0)
