@@ -58,8 +58,8 @@ SIZED_IN_MM = (True, False, True)
 
 #: The width expansions the Gaussian shape models are built from: the library's run 0.7–1.2 ×
 #: each template's width (1.2–2.4 m), where real cars are 1.7–2.1 m wide; those within this
-#: range keep the prior's width spread a real car's (BENCHMARKS.md: narrower, or all, did
-#: worse). The paper's solve mixes all of them.
+#: range keep the prior's width spread a real car's (BENCHMARKS.md: all did worse, 1.0 alone
+#: worse at 10° elevation). The paper's solve mixes all of them.
 REAL_WIDTH_FACTORS = (0.9, 1.1)
 
 
