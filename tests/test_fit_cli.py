@@ -142,7 +142,8 @@ def test_fit_with_a_camera_distance_reports_it(photo):
     # The distance is found by default; the test photo is orthographic, so the camera is far away.
     assert rep["camera_distance_mm"] is None or rep["camera_distance_mm"] > 30_000
     assert rep["residual_px_mean"] < 3 and "camera" in proc.stdout
-    # A told distance (no wheelbase given) is read at the fitted car's wheelbase, so it comes back.
+    # A told distance (no wheelbase given) comes back: this photo is orthographic, too little
+    # perspective to size the car by, so the distance is read at the fitted car's wheelbase.
     proc = run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
                    "--distance", "60000", "-o", str(out / "car.step"), "--report", str(out / "r.json"), check=True)
     assert json.loads((out / "r.json").read_text())["camera_distance_mm"] == pytest.approx(60_000, rel=0.01)

@@ -407,6 +407,20 @@ def _pinhole_observe(truth, view, distance, scale=0.5, offset=(500.0, 300.0), no
     return {s.name: p for s, p in zip(slots, uv)}
 
 
+@pytest.mark.parametrize("template", ["Ford F-150 SuperCrew 5.5 ft", "Mazda MX-5 ND"])
+def test_a_told_camera_distance_gives_the_cars_size(library, template):
+    """No wheelbase told: the mix of the other cars makes the pickup ~20 % too short and the
+    roadster ~20 % too long. Told how far the camera stood (mm), the perspective says how far
+    that is in wheelbases, so the two give the size."""
+    t, loo, truth = _left_out(library, template)
+    wb = float(library.template_wheelbase_mm[t])
+    kps = _pinhole_observe(truth, View(30, 10), 2200.0, noise=1.0)
+    told = fit_wireframe(kps, View(30, 10), loo, camera_distance_mm=2.2 * wb)
+    found = fit_wireframe(kps, View(30, 10), loo, camera_distance_mm="auto")
+    assert abs(told.wheelbase_mm / wb - 1) < 0.05 < 0.15 < abs(found.wheelbase_mm / wb - 1)
+    assert told.camera_distance_mm == pytest.approx(2.2 * wb)
+
+
 def test_photo_from_a_few_metres_needs_the_pinhole_camera(library, topology):
     """A library car photographed from 2.2 wheelbases (≈ 6 m): the orthographic fit is far off,
     the fit told the distance lands on the marks and near the car (the paper's solve too), and

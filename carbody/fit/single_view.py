@@ -375,8 +375,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         check_azimuth(view.azimuth)
     if method not in METHODS:
         raise FitError(f"unknown fit method {method!r} (known: {', '.join(METHODS)})")
-    if wheelbase_mm is not None and not (np.isfinite(wheelbase_mm) and 500 <= wheelbase_mm <= 10_000):
-        raise FitError(f"wheelbase {wheelbase_mm!r} mm is not a car's (500–10000 mm)")
+    if wheelbase_mm is not None and not (np.isfinite(wheelbase_mm) and MIN_WHEELBASE_MM <= wheelbase_mm <= MAX_WHEELBASE_MM):
+        raise FitError(f"wheelbase {wheelbase_mm!r} mm is not a car's ({MIN_WHEELBASE_MM:g}–{MAX_WHEELBASE_MM:g} mm)")
     if library is None:
         from carbody.library import load_library
 
@@ -393,14 +393,25 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
         result = _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
     else:
-        # A distance told in mm is read in wheelbases: at the car's own, which the fit gives; a
-        # pass or two more agree to DISTANCE_WHEELBASE_AGREEMENT.
-        read_at = float(np.mean(library.template_wheelbase_mm))
-        for _ in range(DISTANCE_PASSES):
-            result = _fit_checked(**fit, distance_wheelbase_mm=read_at)
-            if abs(result.wheelbase_mm / read_at - 1.0) < DISTANCE_WHEELBASE_AGREEMENT:
-                break
+        # A distance told in mm without the wheelbase: the perspective gives the distance in
+        # wheelbases, so the two give the car's size (BENCHMARKS.md: closer than the mix's own) …
+        _pinhole(view, camera_distance_mm, None, library)  # refuses a camera in the car
+        result = _fit_checked(**{**fit, "camera_distance_mm": "auto"}, distance_wheelbase_mm=None)
+        sized = (np.inf if result.view.distance is None
+                 else float(camera_distance_mm) * NORMALISED_WHEELBASE / result.view.distance)
+        lo, hi = np.min(library.template_wheelbase_mm), np.max(library.template_wheelbase_mm)
+        if lo / PERSPECTIVE_SIZE_RANGE <= sized <= hi * PERSPECTIVE_SIZE_RANGE:
+            result = _at_wheelbase(result, sized)
+        else:
+            # … unless it shows too little perspective for that (a distant camera): then the
+            # told distance is read at the car's own wheelbase, which the fit gives; a pass or
+            # two more agree to DISTANCE_WHEELBASE_AGREEMENT.
             read_at = result.wheelbase_mm
+            for _ in range(DISTANCE_PASSES):
+                result = _fit_checked(**fit, distance_wheelbase_mm=read_at)
+                if abs(result.wheelbase_mm / read_at - 1.0) < DISTANCE_WHEELBASE_AGREEMENT:
+                    break
+                read_at = result.wheelbase_mm
     if principal is None or result.view.distance is None:
         return _deformed(result) if deform else result
     # Turn the camera to look at the car's centre and refit: by the known focal length, else the
@@ -531,11 +542,25 @@ def _principal_point(principal_point, image_size, focal_px: float | None) -> np.
     return point
 
 
-#: Most fits of a photo whose camera distance is told in mm but whose wheelbase is not.
-DISTANCE_PASSES = 3
+#: The wheelbases (mm) the fit accepts when told.
+MIN_WHEELBASE_MM, MAX_WHEELBASE_MM = 500.0, 10_000.0
 
-#: The wheelbase the told distance is read at and the fitted one agree to this fraction.
+#: A car's size read from a told camera distance and the fit's perspective is taken when it
+#: lies within this factor of the library's wheelbases (beyond: too little perspective) …
+PERSPECTIVE_SIZE_RANGE = 1.5
+
+#: … else the told distance is read at the fitted car's own wheelbase, in at most this many fits
+#: until the two agree to this fraction.
+DISTANCE_PASSES = 3
 DISTANCE_WHEELBASE_AGREEMENT = 0.005
+
+
+def _at_wheelbase(result: FitResult, wheelbase_mm: float) -> FitResult:
+    """``result`` with its car (and camera) read at ``wheelbase_mm``."""
+    from dataclasses import replace
+
+    points = result.solution.shape.reshape(-1, 3) * (wheelbase_mm / NORMALISED_WHEELBASE)
+    return replace(result, wireframe=Wireframe(result.wireframe.name, points), wheelbase_mm=float(wheelbase_mm))
 
 
 def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
