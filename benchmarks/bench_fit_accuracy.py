@@ -365,7 +365,8 @@ def main(argv=None) -> int:
         d = np.array([np.inf if r["refined_distance_mm"] is None else r["refined_distance_mm"] for r in found])
         print(f"\nCamera distance found by the fit: median {np.median(d):.0f} mm for {args.distance:g} mm; "
               f"within 10 % in {int(np.sum(np.abs(d / args.distance - 1) < 0.1))} of {len(d)} cases.")
-    print("\nWheelbase the fit estimates when none is given (the mix's own), error vs the truth, view known:\n")
+    print("\nWheelbase the fit estimates when none is given (the mix's own; told the camera distance, "
+          "from the perspective), error vs the truth, view known:\n")
     print("| method | mean abs. | median abs. | max abs. |")
     print("|---|---|---|---|")
     for method in dict.fromkeys(r["method"] for r in rows):

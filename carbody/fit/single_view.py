@@ -344,7 +344,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             ``"paper"`` (the paper's method as published).
         camera_distance_mm: None for SPEC's orthographic camera; a number for a pinhole camera
             that far from the car's centre (a photo taken from a few metres shows nearer parts
-            larger; without ``wheelbase_mm`` it is read at the fitted car's wheelbase);
+            larger; without ``wheelbase_mm`` it sizes the car: the fit finds the distance in
+            wheelbases from the perspective, and the two give the wheelbase; with too little
+            perspective for that, it is read at the fitted car's own wheelbase);
             ``"auto"`` to find the distance (with the view, when it is refined).
         principal_point: where a pinhole camera's optical axis meets the photo: ``"car"``
             (the camera pointed at the car's centre, or the photo cropped around it),
