@@ -392,6 +392,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                prior_weight=prior_weight, refine=refine, camera_distance_mm=camera_distance_mm,
                wheelbase_mm=wheelbase_mm, name=name)
     deform = (method != "paper") if deform is None else deform
+    by_distance = None  # the wheelbase a told distance and the perspective give
     if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
         result = _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
     else:
@@ -399,11 +400,13 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         # wheelbases, so the two give the car's size (BENCHMARKS.md: closer than the mix's own) …
         _pinhole(view, camera_distance_mm, None, library)  # refuses a camera in the car
         result = _fit_checked(**{**fit, "camera_distance_mm": "auto"}, distance_wheelbase_mm=None)
-        sized = (np.inf if result.view.distance is None
-                 else float(camera_distance_mm) * NORMALISED_WHEELBASE / result.view.distance)
-        lo, hi = np.min(library.template_wheelbase_mm), np.max(library.template_wheelbase_mm)
-        if lo / PERSPECTIVE_SIZE_RANGE <= sized <= hi * PERSPECTIVE_SIZE_RANGE:
-            result = _at_wheelbase(result, sized)
+        if result.view.distance is not None:
+            by_distance = float(camera_distance_mm) * NORMALISED_WHEELBASE / result.view.distance
+            lo, hi = np.min(library.template_wheelbase_mm), np.max(library.template_wheelbase_mm)
+            if not lo / PERSPECTIVE_SIZE_RANGE <= by_distance <= hi * PERSPECTIVE_SIZE_RANGE:
+                by_distance = None
+        if by_distance is not None:
+            result = _at_wheelbase(result, by_distance)
         else:
             # … unless it shows too little perspective for that (a distant camera): then the
             # told distance is read at the car's own wheelbase, which the fit gives; a pass or
@@ -423,6 +426,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     turn = dict(fit=fit, uv=uv, principal=principal, given=view)
     if focal_px is not None or camera_distance_mm != "auto":
         result = _looking_at_car(result, focal_px, **turn, rescan=True)
+        if by_distance is not None:  # the turned fit read the told distance at that size
+            result = _at_wheelbase(result, by_distance)
     else:
         unturned, result = result, _looking_at_car(result, None, **turn)
         if result.focal_px is not None:  # turned: now the focal length with the best evidence
