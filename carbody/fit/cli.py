@@ -12,8 +12,9 @@ def add_camera_arguments(p: argparse.ArgumentParser) -> None:
     """The photo's camera options, shared by ``fit`` and ``reconstruct``."""
     p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
                    help="how far the camera stood from the car's centre, mm (a photo from a few "
-                        "metres shows nearer parts larger), 'auto' to find it (default), or "
-                        "'orthographic' for a distant camera (SPEC's)")
+                        "metres shows nearer parts larger; without --wheelbase it also gives the "
+                        "car's size), 'auto' to find it (default), or 'orthographic' for a "
+                        "distant camera (SPEC's)")
     p.add_argument("--principal-point", default="auto", choices=("auto", "car", "centre"),
                    help="where the camera's optical axis meets the photo: 'car' (the camera "
                         "pointed at the car, or the photo cropped around it), 'centre' (an "
