@@ -147,4 +147,4 @@ def test_fit_with_a_camera_distance_reports_it(photo):
     proc = run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
                    "--distance", "60000", "-o", str(out / "car.step"), "--report", str(out / "r.json"), check=True)
     assert json.loads((out / "r.json").read_text())["camera_distance_mm"] == pytest.approx(60_000, rel=0.01)
-    assert "camera 60" in proc.stdout
+    assert "camera 60" in proc.stdout and "(library mix)" in proc.stdout

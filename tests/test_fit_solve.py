@@ -419,6 +419,7 @@ def test_a_told_camera_distance_gives_the_cars_size(library, template):
     found = fit_wireframe(kps, View(30, 10), loo, camera_distance_mm="auto")
     assert abs(told.wheelbase_mm / wb - 1) < 0.05 < 0.15 < abs(found.wheelbase_mm / wb - 1)
     assert told.camera_distance_mm == pytest.approx(2.2 * wb)
+    assert (told.wheelbase_from, found.wheelbase_from) == ("camera distance", "library mix")
     # off the photo's centre too: the fit turned toward the car keeps that size
     turned = fit_wireframe(off_centre_photo(truth, View(30, 10), noise=1.0), View(30, 10), loo,
                            image_size=(2000, 1000), camera_distance_mm=2.2 * wb, principal_point="centre")

@@ -55,6 +55,7 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "focal_length_px": result.focal_px,
         "image_offset_px": [float(v) for v in result.solution.offset],
         "wheelbase_mm": result.wheelbase_mm,
+        "wheelbase_from": result.wheelbase_from,  # "told", "camera distance" or "library mix"
         "keypoints_annotated": len(result.slots),
         "keypoints_mm": result.keypoints_mm(),
         "residual_px": res,

@@ -192,6 +192,9 @@ class FitResult:
         focal_px: the focal length that turn used, pixels (the known one, or the fit's).
         camera_turn_deg: how far that turn swung the camera from the photo's optical axis to
             the car's centre, degrees (0: no turn).
+        wheelbase_from: where ``wheelbase_mm`` came from: ``"told"``, ``"camera distance"``
+            (a told distance against the perspective's) or ``"library mix"`` (the fitted mix
+            of the templates' own wheelbases).
     """
 
     wireframe: Wireframe
@@ -207,6 +210,7 @@ class FitResult:
     to_photo: np.ndarray | None = None
     focal_px: float | None = None
     camera_turn_deg: float = 0.0
+    wheelbase_from: str = "library mix"
 
     @property
     def mm_per_unit(self) -> float:
@@ -567,7 +571,8 @@ def _at_wheelbase(result: FitResult, wheelbase_mm: float) -> FitResult:
     from dataclasses import replace
 
     points = result.solution.shape.reshape(-1, 3) * (wheelbase_mm / NORMALISED_WHEELBASE)
-    return replace(result, wireframe=Wireframe(result.wireframe.name, points), wheelbase_mm=float(wheelbase_mm))
+    return replace(result, wireframe=Wireframe(result.wireframe.name, points), wheelbase_mm=float(wheelbase_mm),
+                   wheelbase_from="camera distance")
 
 
 def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
@@ -613,6 +618,7 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
                    refined.distance, refined.aim)
     if sol.shape is None:
         sol.shape = library.S[:, sol.support] @ sol.H[sol.support]
+    told = wheelbase_mm
     if wheelbase_mm is None:
         if sol.H is None:
             raise FitError("no wheelbase given and the mix's weights are unknown")
@@ -620,7 +626,7 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
     points = sol.shape.reshape(-1, 3) * (wheelbase_mm / NORMALISED_WHEELBASE)
     return FitResult(wireframe=Wireframe(name, points), view=refined, given_view=view, solution=sol,
                      slots=slots, uv=uv, wheelbase_mm=float(wheelbase_mm), method=method,
-                     library=library)
+                     library=library, wheelbase_from="library mix" if told is None else "told")
 
 
 #: Step (degrees) of the finite differences that measure how sharply the evidence pins a
