@@ -127,7 +127,7 @@ class Reconstruction:
                f"(focal length {fit['focal_length_px']:.0f} px)" if fit["camera_turn_deg"] else ""),
             f"keypoints: {fit['keypoints_annotated']}, reprojection residual mean "
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
-            f"wheelbase: {fit['wheelbase_mm']:.0f} mm" + (f" ({fit['wheelbase_from']})" if "wheelbase_from" in fit else ""),
+            f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({fit['wheelbase_from']})",
         ]
         if "expected_error_mm" in fit:
             from carbody.fit.report import expected_error_line

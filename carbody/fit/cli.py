@@ -163,7 +163,7 @@ def run_fit(args: argparse.Namespace) -> int:
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm ({result.wheelbase_from}) -> {args.output}")
-    expected = result.expected_error_mm()
+    expected = result.expected_error_mm() if report is None else report.get("expected_error_mm")
     if expected is not None:
         print(expected_error_line(expected))
     suspects = result.suspect_keypoints()

@@ -68,12 +68,13 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
     }
-    expected = result.expected_error_mm()
-    if expected is not None:
+    sd = result.keypoint_sd_mm()
+    if sd is not None:
         # the fit's own estimate of how far each keypoint may be off (posterior standard
         # deviations per axis, and their 3D root sum of squares); BENCHMARKS.md compares it
         # with the leave-one-out errors
-        report["keypoint_sd_mm"] = result.keypoint_sd_mm()
+        expected = result.expected_error_mm(sd)
+        report["keypoint_sd_mm"] = sd
         report["expected_error_mm"] = expected
         report["expected_error_mm_mean"] = float(np.mean(list(expected.values())))
     if truth is not None:

@@ -57,7 +57,7 @@ def _cached(library: Library, what, build):
 SIZED_IN_MM = (True, False, True)
 
 #: The width expansions the Gaussian shape models are built from: the library's run 0.7–1.2 ×
-#: each template's width (1.2–2.4 m), where real cars are 1.7–2.1 m wide; those within this
+#: each template's width, far wider and narrower than real cars differ; those within this
 #: range keep the prior's width spread a real car's (BENCHMARKS.md: all did worse, 1.0 alone
 #: worse at 10° elevation). The paper's solve mixes all of them.
 REAL_WIDTH_FACTORS = (0.9, 1.1)
@@ -247,10 +247,11 @@ class FitResult:
                 out[s.name] = out[s.name.removesuffix("_right")]
         return out
 
-    def expected_error_mm(self) -> dict[str, float] | None:
+    def expected_error_mm(self, keypoint_sd_mm: dict[str, list[float]] | None = None) -> dict[str, float] | None:
         """{name: √(σx² + σy² + σz²) mm} of the 35 left keypoints: the fit's own estimate of
-        each keypoint's 3D error (:meth:`keypoint_sd_mm`); None for ``"paper"``."""
-        sd = self.keypoint_sd_mm()
+        each keypoint's 3D error (from ``keypoint_sd_mm``, default :meth:`keypoint_sd_mm`);
+        None for ``"paper"``."""
+        sd = self.keypoint_sd_mm() if keypoint_sd_mm is None else keypoint_sd_mm
         if sd is None:
             return None
         return {k.name: float(np.linalg.norm(sd[k.name])) for k in load_topology().keypoints}
