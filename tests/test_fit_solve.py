@@ -458,3 +458,23 @@ def test_photo_from_a_few_metres_needs_the_pinhole_camera(library, topology):
     fixed = fit_wireframe(kps, View(30, 10), library, wheelbase_mm=wb_mm, camera_distance_mm="auto",
                           refine=False)  # the view as given, the distance found
     assert fixed.view.azimuth == 30 and fixed.view.distance == pytest.approx(2200.0, rel=0.15)
+
+
+def test_a_rough_scan_ranks_the_grid_and_the_full_solve_answers():
+    """refine_view's ``scan_at`` (a pinhole view's single Newton round) ranks the coarse grid
+    only: the continuous search and the returned solution are the full solve's."""
+    from types import SimpleNamespace
+
+    from carbody.fit.refine import refine_view
+
+    calls = {"rough": 0, "full": 0}
+
+    def solution(v, kind, bias):
+        calls[kind] += 1
+        r = np.array([(v.azimuth - 38.0 - bias) / 5.0, (v.elevation - 10.0) / 5.0])
+        return SimpleNamespace(residual_vector=r, cost=float(r @ r), evidence=None, kind=kind)
+
+    view, sol = refine_view(lambda v: solution(v, "full", 0.0), View(30, 10),
+                            scan_at=lambda v: solution(v, "rough", 1.5))
+    assert sol.kind == "full" and calls["rough"] >= 9 * 3
+    assert abs(view.azimuth - 38.0) < 0.1 and abs(view.elevation - 10.0) < 0.1

@@ -60,7 +60,8 @@ def view_score(sol) -> float:
 
 
 def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations: int = 60,
-                free: tuple[str, ...] = DEFAULT_FREE, scan: bool = True):
+                free: tuple[str, ...] = DEFAULT_FREE, scan: bool = True,
+                scan_at: Callable[[View], object] | None = None):
     """The view near ``given`` whose solve has the least evidence (or residual).
 
     Args:
@@ -73,6 +74,8 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
             orthographic).
         scan: try the coarse grid of views first (off: only the local search, for a start
             known to be close).
+        scan_at: a cheaper, rougher ``solve_at`` that ranks the coarse grid (a pinhole view's
+            single Newton round); the grid's best view is then solved by ``solve_at``.
     Returns:
         (refined View, its solution).
     """
@@ -87,7 +90,8 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
                     None if rho <= 0 else PERSPECTIVE_LENGTH / rho, given.aim)
 
     rho0 = 0.0 if given.distance is None else PERSPECTIVE_LENGTH / given.distance
-    best_view, best = given, solve_at(given)
+    ranked_by = scan_at if scan and scan_at is not None else solve_at
+    best_view, best = given, ranked_by(given)
 
     azimuths = AZIMUTH_SCAN_DEG if "azimuth" in free else (0.0,)
     elevations = [e for e in ELEVATION_SCAN_DEG if ELEVATION_RANGE_DEG[0] <= given.elevation + e
@@ -96,7 +100,7 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     def try_view(v: View) -> None:
         nonlocal best_view, best
         try:
-            sol = solve_at(v)
+            sol = ranked_by(v)
         except (FitError, AngleError):
             return
         if view_score(sol) < view_score(best):
@@ -110,6 +114,11 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
     for d, e, rho in ((d, e, rho) for d in azimuths for e in elevations for rho in rhos):
         if d or e or rho != rho0:
             try_view(view_at((given.azimuth + d, given.elevation + e, given.roll, rho)))
+    if ranked_by is not solve_at:
+        try:
+            best = solve_at(best_view)
+        except (FitError, AngleError):
+            best_view, best = given, solve_at(given)
 
     lo = np.array([given.azimuth - AZIMUTH_RANGE_DEG, ELEVATION_RANGE_DEG[0], given.roll - ROLL_RANGE_DEG,
                    min(PERSPECTIVE_RANGE[0], rho0)])

@@ -7,6 +7,7 @@ return the new model in millimetres with everything the overlay and the report n
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -16,8 +17,8 @@ from carbody.camera import View, apply_homography, look_at_homography, project
 from carbody.fit.deform import DeformationField
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
 from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
-from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, KeypointBasis, MixSolution,
-                               ShapeModel, car_centre, keypoint_covariance, solve_gauss,
+from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERATIONS, KeypointBasis,
+                               MixSolution, ShapeModel, car_centre, keypoint_covariance, solve_gauss,
                                solve_simplex)
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
@@ -590,13 +591,13 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
     if method == "paper":
         state = {"support": None}
 
-        def solve_at(v: View) -> MixSolution:
-            sol = solve_simplex(model, slots, uv, v, library.S, warm_support=state["support"])
+        def solve_at(v: View, rounds: int = PERSPECTIVE_ITERATIONS) -> MixSolution:
+            sol = solve_simplex(model, slots, uv, v, library.S, warm_support=state["support"], rounds=rounds)
             state["support"] = sol.support
             return sol
     else:
-        def solve_at(v: View) -> MixSolution:
-            sol = solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture")
+        def solve_at(v: View, rounds: int = PERSPECTIVE_ITERATIONS) -> MixSolution:
+            sol = solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture", rounds=rounds)
             sol.evidence += implausibility(sol.shape, library, wheelbase_mm)
             return sol
 
@@ -607,7 +608,9 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
         if camera_distance_mm == "auto":
             free += ("perspective",)
     if free:
-        refined, sol = refine_view(solve_at, view, free=free, scan=scan)
+        # A pinhole camera's coarse scan ranks its views by one Newton round each.
+        refined, sol = refine_view(solve_at, view, free=free, scan=scan,
+                                   scan_at=None if camera_distance_mm is None else partial(solve_at, rounds=1))
     else:
         refined, sol = view, solve_at(view)
     if sol.view is not None:

@@ -410,7 +410,8 @@ def _image_fit(M: np.ndarray, keypoints: np.ndarray, z: np.ndarray, scale: float
 
 
 def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarray, view: View,
-                  shapes: np.ndarray | None = None, warm_support: np.ndarray | None = None) -> MixSolution:
+                  shapes: np.ndarray | None = None, warm_support: np.ndarray | None = None,
+                  rounds: int = PERSPECTIVE_ITERATIONS) -> MixSolution:
     """The paper's constrained solve (ΣH = 1, 0 ≤ H ≤ 1) with the image's scale and offset.
 
     Args:
@@ -422,13 +423,15 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
         shapes: (840, N) float, the library's S, to return the new model S·H (else ``shape``
             is None).
         warm_support: models to start the active set from (a previous solution's support).
+        rounds: a pinhole view's Newton rounds (1: linearised at the library's mean car only,
+            the refinement's coarse scan).
     Raises:
         FitError: keypoints no library mix reproduces at a positive image scale.
     """
     from dataclasses import replace
 
     kp = basis.mean  # a pinhole's first linearisation: the mean car
-    rounds = 1 if view.distance is None else PERSPECTIVE_ITERATIONS
+    rounds = 1 if view.distance is None else rounds
     for round_ in range(rounds):
         M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, kp)
         G = _solve_working_set(basis, Mc / basis.size, cc / basis.size, b, warm_support, slots, M)
@@ -454,7 +457,7 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
 
 def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[KeypointSlot],
                 uv: np.ndarray, view: View, prior_weight: float = DEFAULT_PRIOR_WEIGHT,
-                mixture: bool = False) -> MixSolution:
+                mixture: bool = False, rounds: int = PERSPECTIVE_ITERATIONS) -> MixSolution:
     """MAP shape under the library's Gaussian shape prior, with the image's scale and offset.
 
     Args:
@@ -464,10 +467,11 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         prior_weight: λ.
         mixture: a mixture prior, one Gaussian (the library's covariance) around each template's
             mean, combined by their posterior weights (``"mixture"`` method).
+        rounds: a pinhole view's Newton rounds (below).
 
     A pinhole view (``view.distance``) is aimed at the car's centre and solved by Newton rounds:
     linearise the camera and set the aim at the current shape, solve, repeat
-    (``PERSPECTIVE_ITERATIONS``); the solution's ``view`` carries the final aim.
+    (``rounds``, default ``PERSPECTIVE_ITERATIONS``); the solution's ``view`` carries the final aim.
     """
     from dataclasses import replace
 
@@ -475,7 +479,7 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     mk = model.mean.reshape(-1, 3)[point_indices].ravel()
     Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
     shape = model.mean
-    for _ in range(1 if view.distance is None else PERSPECTIVE_ITERATIONS):
+    for _ in range(1 if view.distance is None else rounds):
         if view.distance is not None:
             view = replace(view, aim=car_centre(shape))
         sol = _solve_gauss_linear(model, mk, Bk, point_indices, slots, uv, view,
