@@ -91,9 +91,9 @@ def view_rotation(view: View) -> np.ndarray:
     """
     d = camera_direction(view)
     f = -d
-    r = np.cross(f, [0.0, 0.0, 1.0])
-    r /= np.linalg.norm(r)
-    w = np.cross(r, f)
+    r = np.array([f[1], -f[0], 0.0])  # f × ẑ (written out: np.cross costs more than the fit's solve step)
+    r /= np.sqrt(r @ r)
+    w = np.array([r[1] * f[2], -r[0] * f[2], r[0] * f[1] - r[1] * f[0]])  # r × f, r_z = 0
     c, s = np.cos(np.radians(view.roll)), np.sin(np.radians(view.roll))
     return np.array([d, c * r - s * w, c * w + s * r])
 

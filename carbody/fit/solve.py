@@ -115,8 +115,9 @@ class ShapeModel:
         basis: (840, q) float, principal directions scaled by their standard deviation, so a
             shape m + basis·a has a ~ N(0, I) over the library.
         size: as :attr:`KeypointBasis.size`.
-        to_weights: (N, q) float or None, maps a to affine library weights H − weight_offset
-            (reports).
+        to_weights: (N, q₀) float or None, maps a's first q₀ coefficients (the library's
+            directions; any after them are a field's, :meth:`with_field`) to affine library
+            weights H − weight_offset (reports).
         group_means: (T, q) float or None, each template's mean coefficients (the centres of
             the ``"mixture"`` prior).
         weight_offset: (N,) float or None, the weights of the model's mean shape: 1/N for every
@@ -135,7 +136,16 @@ class ShapeModel:
         if self.to_weights is None:
             return None
         offset = 1.0 / len(self.to_weights) if self.weight_offset is None else self.weight_offset
-        return offset + self.to_weights @ a
+        return offset + self.to_weights @ a[:self.to_weights.shape[1]]
+
+    def with_field(self, field: np.ndarray) -> "ShapeModel":
+        """The model with extra zero-mean directions (a displacement field's basis, (840, q'),
+        each column one standard deviation): shape = mean + basis·a + field·c with c ~ N(0, I)
+        like a, solved with it. The weights stay the library part's (c adds none)."""
+        return ShapeModel(mean=self.mean, basis=np.hstack([self.basis, field]), size=self.size,
+                          to_weights=self.to_weights, weight_offset=self.weight_offset,
+                          group_means=None if self.group_means is None else
+                          np.hstack([self.group_means, np.zeros((len(self.group_means), field.shape[1]))]))
 
     @classmethod
     def from_shapes(cls, S: np.ndarray, point_indices: np.ndarray, with_weights: bool = True,
@@ -555,6 +565,10 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
 
 
+_SCALE_GRID = np.geomspace(0.1, 10.0, 41)  # the scale search's first grid, × the unregularised scale
+_SCALE_STEPS = np.linspace(0.0, 1.0, 17)  # … and each narrowing pass's, across the best bracket
+
+
 def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float) -> tuple:
     """argmin over a, g > 0 of ‖g·(am + AB·a) − b‖² + λ‖a‖² (the MAP shape and scale), for one or
     several prior centres at once.
@@ -574,8 +588,14 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     """
     ams = np.atleast_2d(ams)
     # Thin SVD: directions of a the image cannot see (AB·v = 0) stay at the prior mean, 0.
-    _, sv, Vt = np.linalg.svd(AB, full_matrices=False)
-    V, e = Vt.T, sv**2
+    if AB.shape[1] > AB.shape[0]:  # more directions than image rows: from the small Gram matrix
+        e, U = np.linalg.eigh(AB @ AB.T)
+        seen = e > 1e-12 * max(float(e[-1]), 1e-300)
+        e, U = e[seen][::-1], U[:, seen][:, ::-1]
+        V = (AB.T @ U) / np.sqrt(e)
+    else:
+        _, sv, Vt = np.linalg.svd(AB, full_matrices=False)
+        V, e = Vt.T, sv**2
     ABV = AB @ V
     y1, y2 = ABV.T @ b, ams @ ABV  # (q,), (T, q)
 
@@ -594,11 +614,11 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
 
     # The unregularised scale of each centre brackets the answer.
     g0 = np.maximum(amb[:, 0] / np.maximum(amam[:, 0], 1e-300), 1e-6)
-    grid = g0[:, None] * np.geomspace(0.1, 10.0, 41)
+    grid = g0[:, None] * _SCALE_GRID
     i = np.argmin(cost(grid), axis=1)
     rows = np.arange(len(ams))
     lo, hi = grid[rows, np.maximum(i - 1, 0)], grid[rows, np.minimum(i + 1, grid.shape[1] - 1)]
-    steps = np.linspace(0.0, 1.0, 17)
+    steps = _SCALE_STEPS
     for _ in range(SCALE_PASSES):  # each pass narrows the bracket 8×, all centres at once
         grid = lo[:, None] + (hi - lo)[:, None] * steps
         costs = cost(grid)
