@@ -16,6 +16,12 @@ curves stay smooth and joined. The field is the sum of two squared-exponential p
   shift then moves the point along the car, not straight across the picture to the nearest spot
   on its line of sight.
 
+The local part also sits in the shape prior itself, at a fraction of its amplitude and
+correlated right across the car (``JOINT_FIELD_AMPLITUDE`` in :mod:`carbody.fit.single_view`,
+:func:`joint_field_basis`), solved with the mix: a feature off every template along the car is
+then taken up there already, not by bending the whole mix to reach it (on a near-side view, by
+making the car wider). This stage follows what is left.
+
 A residual seen in one image says nothing about depth, so what the photo cannot see stays
 mostly as the prior put it. How much of a residual is the car and how much the marking error is
 chosen per photo by the field's marginal likelihood (type-II maximum likelihood) over a small
@@ -48,6 +54,13 @@ LOCAL_SIGMA = (5.0, 40.0, 10.0)
 
 #: Correlation length of the local part, normalised units (≈ 0.32 m at a 2.7 m wheelbase).
 LOCAL_LENGTH = 120.0
+
+#: Correlation lengths (x, y, z), normalised units, of the local part where it joins the shape
+#: prior (:func:`joint_field_basis`): across the car as long as the car is wide, since a feature
+#: whose place along the car differs — a windscreen header, a pillar, a window's end — runs
+#: across it, so its hidden centre follows its visible corner; along the car and up as short as
+#: the local part's own.
+JOINT_LENGTH = (800.0, LOCAL_LENGTH, LOCAL_LENGTH)
 
 #: The local part's amplitudes the marginal likelihood chooses from.
 LOCAL_AMPLITUDES = (0.5, 1.0)
@@ -129,15 +142,21 @@ class DeformationField:
         return shape + self.basis @ (A.T @ alpha) + amplitude ** 2 * (self.local @ (L.T @ alpha))
 
 
+def joint_field_basis(reference: np.ndarray, topology: Topology) -> np.ndarray:
+    """(3·P, q) the local part's basis as it joins the shape prior: ``LOCAL_SIGMA``, correlated
+    over ``JOINT_LENGTH`` (see :data:`carbody.fit.single_view.JOINT_FIELD_AMPLITUDE`)."""
+    return _field_basis(reference, topology, LOCAL_SIGMA, JOINT_LENGTH)
+
+
 def _field_basis(reference: np.ndarray, topology: Topology, sigma: tuple[float, float, float],
-                 length: float) -> np.ndarray:
+                 length: float | tuple[float, float, float]) -> np.ndarray:
     """(3·P, q): a low-rank basis of a mirror-symmetric squared-exponential displacement field
-    with per-axis standard deviations ``sigma``, pinned at the wheel centres."""
-    P = np.asarray(reference, dtype=float).reshape(-1, 3)
+    with per-axis standard deviations ``sigma`` and correlation ``length`` (one, or per axis of
+    the distance: x, y, z), pinned at the wheel centres."""
+    P = np.asarray(reference, dtype=float).reshape(-1, 3) / np.asarray(length, dtype=float)
     mirrored = P * [-1.0, 1.0, 1.0]
-    two_l2 = 2.0 * length * length
-    near = np.exp(-np.sum((P[:, None] - P[None]) ** 2, axis=-1) / two_l2)
-    across = np.exp(-np.sum((P[:, None] - mirrored[None]) ** 2, axis=-1) / two_l2)
+    near = np.exp(-np.sum((P[:, None] - P[None]) ** 2, axis=-1) / 2.0)
+    across = np.exp(-np.sum((P[:, None] - mirrored[None]) ** 2, axis=-1) / 2.0)
     n = len(P)
     cov = np.zeros((3 * n, 3 * n))
     # d(p) and the mirror's d(Mp) = M·d(p) are one field: lateral parts subtract, others add.

@@ -14,7 +14,7 @@ import numpy as np
 
 from carbody.errors import AngleError, FitError
 from carbody.camera import View, apply_homography, look_at_homography, project
-from carbody.fit.deform import DeformationField
+from carbody.fit.deform import DeformationField, joint_field_basis
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
 from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERATIONS, KeypointBasis,
@@ -48,11 +48,12 @@ def prepared(library: Library, method: str, wheelbase_mm: float | None = None, f
 
 
 #: The local part of the photo-matching deformation (:mod:`carbody.fit.deform`: features moved
-#: along the car) joins the Gaussian shape prior at this fraction of its amplitude, solved with
-#: the mix. A car's pillar or window end that sits off every template's is then taken up there,
-#: not by bending the whole mix (on a near-side view, a car made 10 % wider moves such a point
-#: in the image as well). Chosen on the leave-one-out benchmark (BENCHMARKS.md; 0.2–0.7 tried,
-#: the broad part instead was worse); the deformation after the fit is unchanged.
+#: along the car) joins the Gaussian shape prior at this fraction of its amplitude, correlated
+#: right across the car (:func:`~carbody.fit.deform.joint_field_basis`), solved with the mix. A
+#: car's pillar or window end that sits off every template's is then taken up there, not by
+#: bending the whole mix (on a near-side view, a car made 10 % wider moves such a point in the
+#: image as well). Chosen on the leave-one-out benchmark (BENCHMARKS.md: 0.2–0.7 tried, the
+#: broad part instead was worse); the deformation after the fit is unchanged.
 JOINT_FIELD_AMPLITUDE = 0.3
 
 
@@ -64,12 +65,15 @@ def _joint_field(library: Library) -> np.ndarray:
     """(840, q') the local deformation field's basis at ``JOINT_FIELD_AMPLITUDE``, turned to
     the directions that move the keypoints (the solve sees nothing else; the rest would stay at
     their prior mean, 0), strongest first, to ``JOINT_FIELD_ENERGY``."""
-    field = JOINT_FIELD_AMPLITUDE * prepared_field(library).local
-    idx = load_topology().keypoint_point_indices
-    _, sv, Wt = np.linalg.svd(field.reshape(-1, 3, field.shape[1])[idx].reshape(-1, field.shape[1]),
-                              full_matrices=False)
-    keep = int(np.searchsorted(np.cumsum(sv**2) / np.sum(sv**2), JOINT_FIELD_ENERGY)) + 1
-    return field @ Wt[:keep].T
+    key = (id(library.S), library.S.shape, "joint field")
+    if key not in _PREPARED:
+        topology = load_topology()
+        field = JOINT_FIELD_AMPLITUDE * joint_field_basis(library_mean(library), topology)
+        at_keypoints = field.reshape(-1, 3, field.shape[1])[topology.keypoint_point_indices]
+        _, sv, Wt = np.linalg.svd(at_keypoints.reshape(-1, field.shape[1]), full_matrices=False)
+        keep = int(np.searchsorted(np.cumsum(sv**2) / np.sum(sv**2), JOINT_FIELD_ENERGY)) + 1
+        _PREPARED[key] = (library.S, field @ Wt[:keep].T)
+    return _PREPARED[key][1]
 
 
 def _cached(library: Library, what, build):

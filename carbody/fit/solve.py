@@ -24,6 +24,10 @@ unknown scale s and offset t. Three methods:
   ``"gauss"`` solve; it has the lowest mean error of the three in every case of the
   leave-one-out benchmark (BENCHMARKS.md).
 
+Both Gaussian-prior models carry, beside the library's directions, the local part of the
+photo-matching deformation as zero-mean directions (:meth:`ShapeModel.with_field`), so the
+solve can move a feature along the car instead of bending the whole mix.
+
 The camera is SPEC's orthographic one, or a pinhole camera at a given distance, aimed at the
 car's centre: its projection is linearised at the previous round's shape and the solve repeated
 (Newton steps; :func:`camera_rows`, ``PERSPECTIVE_ITERATIONS``).
@@ -565,7 +569,7 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
 
 
-_SCALE_GRID = np.geomspace(0.1, 10.0, 41)  # the scale search's first grid, × the unregularised scale
+_SCALE_GRID = np.geomspace(0.1, 10.0, 21)  # the scale search's first grid, × the unregularised scale
 _SCALE_STEPS = np.linspace(0.0, 1.0, 17)  # … and each narrowing pass's, across the best bracket
 
 
