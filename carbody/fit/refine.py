@@ -159,7 +159,7 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
         steps = np.array([2.0, 2.0, 2.0, 0.1])[mask]  # degrees; ρ
         simplex = np.vstack([x0] + [x0 + steps[i] * np.eye(len(x0))[i] for i in range(len(x0))])
         found = minimize(objective, x0, method="Nelder-Mead",
-                         options={"initial_simplex": simplex, "xatol": 0.05, "fatol": 1e-2,
+                         options={"initial_simplex": simplex, "xatol": 0.1, "fatol": 1e-2,
                                   "maxfev": 3 * max_evaluations})
         refined = view_at(full(found.x))
     else:
