@@ -99,6 +99,18 @@ def left_out(t: int):
             load_topology().keypoint_point_indices)
 
 
+def set_joint_field(joint: tuple[float, tuple | None] | None) -> None:
+    """In a worker: the joint field's amplitude and lengths (None: the defaults)."""
+    if joint is None:
+        return
+    import carbody.fit.deform as deform
+    import carbody.fit.single_view as single_view
+
+    single_view.JOINT_FIELD_AMPLITUDE = joint[0]
+    if joint[1] is not None:
+        deform.JOINT_LENGTH = joint[1]
+
+
 def run_template(args) -> list[dict]:
     t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre = args
     from carbody.errors import FitError
@@ -302,8 +314,20 @@ def main(argv=None) -> int:
                     help="with --distance: turn the camera's axis this far off the car (the car "
                          "off the photo's centre), and compare the fit taking the camera to point "
                          "at the car (the default) with one told the axis (--principal-point centre)")
+    ap.add_argument("--joint-field", metavar="AMPLITUDE[,LX,LY,LZ]",
+                    help="the local deformation field inside the shape prior: its amplitude (0: "
+                         "none; default JOINT_FIELD_AMPLITUDE) and correlation lengths across, "
+                         "along the car and up (normalised units; default JOINT_LENGTH), to rerun "
+                         "the choice")
     args = ap.parse_args(argv)
     from carbody.library import load_library
+
+    joint = None
+    if args.joint_field:
+        values = [float(v) for v in args.joint_field.split(",")]
+        if len(values) not in (1, 4) or values[0] < 0:
+            ap.error("--joint-field takes an amplitude ≥ 0, optionally followed by three lengths")
+        joint = (values[0], tuple(values[1:]) or None)
 
     n_templates = len(load_library().template_names)
     templates = [0, 5, 9] if args.quick else list(range(n_templates))
@@ -350,13 +374,14 @@ def main(argv=None) -> int:
         cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(args.workers) as pool:
+    with ProcessPoolExecutor(args.workers, initializer=set_joint_field, initargs=(joint,)) as pool:
         rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance, args.noise, args.off_centre)
                                                          for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
           f"elevation {args.elevation:g}°, "
           f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}"
-          f"{f', its axis {args.off_centre:g}° off the car' if args.off_centre else ''}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image "
+          f"{f', its axis {args.off_centre:g}° off the car' if args.off_centre else ''}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image"
+          f"{'' if joint is None else f', joint field {args.joint_field}'} "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
     found = [r for r in rows if r.get("camera") == "auto" and not r.get("focal_known")

@@ -65,6 +65,8 @@ def _joint_field(library: Library) -> np.ndarray:
     """(840, q') the local deformation field's basis at ``JOINT_FIELD_AMPLITUDE``, turned to
     the directions that move the keypoints (the solve sees nothing else; the rest would stay at
     their prior mean, 0), strongest first, to ``JOINT_FIELD_ENERGY``."""
+    if JOINT_FIELD_AMPLITUDE == 0:
+        return np.zeros((library.S.shape[0], 0))
     key = (id(library.S), library.S.shape, "joint field")
     if key not in _PREPARED:
         topology = load_topology()
