@@ -35,16 +35,17 @@ def prepared(library: Library, method: str, wheelbase_mm: float | None = None, f
     in mm (:func:`sized_shape_model`). The shape models carry the local deformation field
     (``JOINT_FIELD_AMPLITUDE``) unless ``field`` is False (the library's span alone)."""
     method = "gauss" if method == "mixture" else method  # same shape model
+    idx = load_topology().keypoint_point_indices
     if method == "paper":
-        return _cached(library, method, lambda: KeypointBasis.from_shapes(library.S, load_topology().keypoint_point_indices))
+        return _cached(library, method, lambda: KeypointBasis.from_shapes(library.S, idx))
     if wheelbase_mm is None:
-        plain = _cached(library, method, lambda: ShapeModel.from_shapes(
-            library.S, load_topology().keypoint_point_indices, groups=library.template_index,
-            keep=real_widths(library)))
-        return _cached(library, (method, "field"), lambda: plain.with_field(_joint_field(library))) if field else plain
-    sized = _cached(library, ("sized", float(wheelbase_mm)), lambda: sized_shape_model(library, wheelbase_mm))
-    return _cached(library, ("sized", float(wheelbase_mm), "field"),
-                   lambda: sized.with_field(_joint_field(library))) if field else sized
+        key = (method,)
+        model = _cached(library, method, lambda: ShapeModel.from_shapes(
+            library.S, idx, groups=library.template_index, keep=real_widths(library)))
+    else:
+        key = ("sized", float(wheelbase_mm))
+        model = _cached(library, key, lambda: sized_shape_model(library, wheelbase_mm))
+    return _cached(library, key + ("field",), lambda: model.with_field(_joint_field(library))) if field else model
 
 
 #: The local part of the photo-matching deformation (:mod:`carbody.fit.deform`: features moved
@@ -636,7 +637,8 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
         scan_at = partial(solve_at, rounds=1) if camera_distance_mm is not None else None
     else:
         def solve_at(v: View, rounds: int = PERSPECTIVE_ITERATIONS, model: ShapeModel = model) -> MixSolution:
-            sol = solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture", rounds=rounds)
+            sol = solve_gauss(model, idx, slots, uv, v, prior_weight, mixture=method == "mixture",
+                              rounds=rounds)
             sol.evidence += implausibility(sol.shape, library, wheelbase_mm)
             return sol
 
