@@ -480,13 +480,12 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
                     principal: np.ndarray, given: View, passes: int | None = None,
-                    rescan: bool = False, field: bool = True) -> FitResult:
+                    rescan: bool = False) -> FitResult:
     """Refit ``result`` (a pinhole fit made as if the camera looked at the car) with the camera
     turned about its centre to look at the car. ``focal_px`` None: the fit's own, f = s·D.
     ``rescan``: the first refit starts again from the given view with the refinement's coarse
     scan (an oblique image plane can have pulled the unturned fit's view degrees off), the
-    later ones from the previous refit's view. ``field`` False: the shape model without the joint
-    field (cheaper; the focal length's search)."""
+    later ones from the previous refit's view."""
     looking = np.array([0.0, 0.0, 1.0])
     for _ in range(passes or PRINCIPAL_PASSES):
         aim_px = result.project_points(np.asarray(result.view.aim) * result.mm_per_unit)
@@ -499,7 +498,7 @@ def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np
         try:
             turned = _fit_checked(**{**fit, "uv": apply_homography(to_turned, uv),
                                      "view": fit["view"] if rescan else result.view},
-                                  distance_wheelbase_mm=result.wheelbase_mm, scan=rescan, field=field)
+                                  distance_wheelbase_mm=result.wheelbase_mm, scan=rescan)
             _in_photo(turned, to_turned, uv, given)
         except AngleError:
             break  # this turn's best camera sits in the car (a wild focal length): keep the last fit
@@ -514,15 +513,13 @@ def _best_focal(settled: FitResult, unturned: FitResult, turn: dict) -> float:
     used, each candidate one turn of the ``unturned`` fit and a refit from its view (a wrong
     focal length can have turned ``settled``'s view far off). The evidence is rugged in the
     focal length (each refit settles in its own view), so a grid of FOCAL_SEARCH_GRID first,
-    then a bounded search between the best one's neighbours. The candidates are refitted with
-    the library's span alone (no joint field): a quarter of the search's cost, the same choice
-    to within a fraction of a millimetre on the benchmark (BENCHMARKS.md)."""
+    then a bounded search between the best one's neighbours."""
     from scipy.optimize import minimize_scalar
 
     scores = {}
 
     def score(log_f: float) -> float:
-        fit = _looking_at_car(unturned, float(np.exp(log_f)), **turn, passes=1, field=False)
+        fit = _looking_at_car(unturned, float(np.exp(log_f)), **turn, passes=1)
         scores[log_f] = np.inf if fit is unturned else view_score(fit.solution)  # a dropped turn
         return scores[log_f]
 
@@ -533,8 +530,8 @@ def _best_focal(settled: FitResult, unturned: FitResult, turn: dict) -> float:
     if np.isfinite(values[k]):
         minimize_scalar(score, bounds=(grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]),
                         method="bounded", options={"xatol": FOCAL_SEARCH_TOLERANCE})
-    best = min(scores, key=scores.get)  # the grid holds the settled focal length itself
-    return float(np.exp(best if np.isfinite(scores[best]) else centre))
+    best = min(scores, key=scores.get)
+    return float(np.exp(best if scores[best] < view_score(settled.solution) else centre))
 
 
 #: With the focal length unknown, the turn toward an off-centre car tries focal lengths up to
@@ -620,12 +617,12 @@ def _at_wheelbase(result: FitResult, wheelbase_mm: float) -> FitResult:
 def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
                  prior_weight: float, refine: bool, camera_distance_mm: float | str | None,
                  wheelbase_mm: float | None, distance_wheelbase_mm: float | None, name: str,
-                 scan: bool = True, field: bool = True) -> FitResult:
+                 scan: bool = True) -> FitResult:
     """:func:`fit_wireframe` on checked input, without the deformation; a distance in mm is
     read at ``distance_wheelbase_mm`` (default the library's mean wheelbase). A ``view`` that
     already has a distance (a previous fit's) starts the refinement as it is, and ``scan``
     False skips the refinement's coarse scan."""
-    model = prepared(library, method, wheelbase_mm, field=field)
+    model = prepared(library, method, wheelbase_mm)
     idx = load_topology().keypoint_point_indices
 
     if method == "paper":
