@@ -71,7 +71,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-refine", action="store_true",
                    help="keep the given view as it is (an 'auto' distance is still found)")
     p.add_argument("--no-deform", action="store_true",
-                   help="keep the library mix as it is (no smooth move onto the marked keypoints)")
+                   help="skip the smooth move onto the marked keypoints after the solve (the "
+                        "solve's own along-the-car field stays)")
     p.add_argument("--output", "-o", required=True, help="wireframe STEP file to write")
     p.add_argument("--overlay", help="PNG: photo + annotated (red) / reprojected (green) keypoints + wireframe")
     p.add_argument("--report", help="JSON report: view, 3D keypoints, residuals, weights, errors")

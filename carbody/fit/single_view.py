@@ -382,9 +382,10 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         refine: refine azimuth and elevation around ``view`` (roll stays as given; see
             :mod:`carbody.fit.refine`); off, the view stays as given (a camera distance
             ``"auto"`` is still found).
-        deform: move the mix onto the annotated keypoints with a smooth symmetric field
-            (:mod:`carbody.fit.deform`); default on for ``"gauss"``/``"mixture"``, off for
-            ``"paper"`` (the paper's method as published).
+        deform: after the solve, move the fit onto the annotated keypoints with a smooth
+            symmetric field (:mod:`carbody.fit.deform`); default on for ``"gauss"``/``"mixture"``,
+            off for ``"paper"`` (the paper's method as published). The Gaussian-prior solve's
+            own field (``JOINT_FIELD_AMPLITUDE``) is part of the solve either way.
         camera_distance_mm: None for SPEC's orthographic camera; a number for a pinhole camera
             that far from the car's centre (a photo taken from a few metres shows nearer parts
             larger; without ``wheelbase_mm`` it sizes the car: the fit finds the distance in
