@@ -18,8 +18,8 @@ from carbody.fit.deform import DeformationField, joint_field_basis
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
 from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERATIONS, KeypointBasis,
-                               MixSolution, ShapeModel, car_centre, keypoint_covariance, solve_gauss,
-                               solve_simplex)
+                               MixSolution, ShapeModel, car_centre, keypoint_covariance, keypoint_spread,
+                               solve_gauss, solve_simplex)
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
@@ -68,15 +68,16 @@ def _joint_field(library: Library) -> np.ndarray:
     their prior mean, 0), strongest first, to ``JOINT_FIELD_ENERGY``."""
     if JOINT_FIELD_AMPLITUDE == 0:
         return np.zeros((library.S.shape[0], 0))
-    key = (id(library.S), library.S.shape, "joint field")
-    if key not in _PREPARED:
+
+    def build() -> np.ndarray:
         topology = load_topology()
         field = JOINT_FIELD_AMPLITUDE * joint_field_basis(library_mean(library), topology)
         at_keypoints = field.reshape(-1, 3, field.shape[1])[topology.keypoint_point_indices]
         _, sv, Wt = np.linalg.svd(at_keypoints.reshape(-1, field.shape[1]), full_matrices=False)
         keep = int(np.searchsorted(np.cumsum(sv**2) / np.sum(sv**2), JOINT_FIELD_ENERGY)) + 1
-        _PREPARED[key] = (library.S, field @ Wt[:keep].T)
-    return _PREPARED[key][1]
+        return field @ Wt[:keep].T
+
+    return _cached(library, ("joint field", JOINT_FIELD_AMPLITUDE), build)
 
 
 def _cached(library: Library, what, build):
@@ -132,8 +133,7 @@ def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
     model = _cached(library, "sized", build)
     unit = np.where(in_mm, NORMALISED_WHEELBASE / wheelbase_mm, 1.0)
     mean = model.mean * unit
-    keypoints = mean.reshape(-1, 3)[load_topology().keypoint_point_indices]
-    size = float(np.sqrt(np.mean(np.sum((keypoints - keypoints.mean(axis=0)) ** 2, axis=1))))
+    size = keypoint_spread(mean.reshape(-1, 3)[load_topology().keypoint_point_indices])
     return ShapeModel(mean=mean, basis=model.basis * unit[:, None], size=size, to_weights=model.to_weights,
                       group_means=model.group_means, weight_offset=model.weight_offset)
 

@@ -77,6 +77,12 @@ WORKING_SET_GROWTH = 400
 STRIDE_SAMPLE = 2000
 
 
+def keypoint_spread(keypoints: np.ndarray) -> float:
+    """RMS distance of (35, 3) keypoints from their centroid: a model's ``size``, the unit its
+    solve measures image residuals against."""
+    return float(np.sqrt(np.mean(np.sum((keypoints - keypoints.mean(axis=0)) ** 2, axis=1))))
+
+
 @dataclass
 class KeypointBasis:
     """The library's keypoint rows, prepared once for many ``"paper"`` solves.
@@ -106,8 +112,7 @@ class KeypointBasis:
     def from_keypoints(cls, X: np.ndarray) -> "KeypointBasis":
         """Build from (35, 3, N) keypoint coordinates (normalised units)."""
         m = X.mean(axis=2, dtype=np.float64)
-        size = float(np.sqrt(np.mean(np.sum((m - m.mean(axis=0)) ** 2, axis=1))))
-        return cls(X=X, size=size, mean=m)
+        return cls(X=X, size=keypoint_spread(m), mean=m)
 
 
 @dataclass
@@ -195,9 +200,8 @@ class ShapeModel:
             full = np.zeros((every, q))
             full[keep] = to_w
             to_w, offset = full, np.where(keep, 1.0 / n, 0.0)
-        m = mean.reshape(-1, 3)[point_indices]
-        size = float(np.sqrt(np.mean(np.sum((m - m.mean(axis=0)) ** 2, axis=1))))
-        return cls(mean=mean, basis=basis, size=size, to_weights=to_w, group_means=centres,
+        return cls(mean=mean, basis=basis, size=keypoint_spread(mean.reshape(-1, 3)[point_indices]),
+                   to_weights=to_w, group_means=centres,
                    weight_offset=offset)
 
 
