@@ -155,7 +155,8 @@ def run_template(args) -> list[dict]:
                 except FitError:  # a told distance read at a wheelbase that puts the camera in the car
                     estimate = float("nan")
             at_truth = wb / res.wheelbase_mm  # 1 when told; else the fit's own size read at the true one
-            err = np.linalg.norm(res.wireframe.control_points[idx] * at_truth - truth[idx] * wb / 1000, axis=1)
+            diff = res.wireframe.control_points[idx] * at_truth - truth[idx] * wb / 1000
+            err = np.linalg.norm(diff, axis=1)
             expected = res.expected_error_mm()
             expected = None if expected is None else [expected[k.name] * at_truth for k in load_topology().keypoints]
             rows.append({"template": name, "azimuth": azimuth, "method": method, "lambda": lam,
@@ -167,6 +168,7 @@ def run_template(args) -> list[dict]:
                          else res.view.distance * wb / 1000.0,
                          "k": len(kps),
                          "mean_mm": float(err.mean()), "max_mm": float(err.max()),
+                         "along_mm": float(np.abs(diff[:, 1]).mean()),
                          "annotated_mean_mm": float(err[ann_idx].mean()),
                          "annotated_max_mm": float(err[ann_idx].max()),
                          "refined_azimuth": res.view.azimuth, "refined_elevation": res.view.elevation,
@@ -274,6 +276,51 @@ def calibration(rows: list[dict]) -> str:
                 "| " + " | ".join(f"{np.mean([r['mean_mm'] for r in rs if r['azimuth'] == a]):.0f} / "
                                   f"{np.mean([np.mean(r['expected_mm']) for r in rs if r['azimuth'] == a]):.0f}"
                                   for a in angles) + " |"]
+    return "\n".join(out)
+
+
+def library_mean_along(template: int) -> np.ndarray:
+    """(35,) mm: each keypoint's position along the car as the other templates' mean says it
+    (normalised, read at this template's wheelbase) — what a prior alone knows of the length."""
+    from carbody.library import load_library
+
+    lib = load_library()
+    idx = left_out(template)[4]
+    along = np.array([lib.points(lib.original(t))[idx, 1] for t in range(len(lib.template_names))])
+    return np.delete(along, template, axis=0).mean(axis=0) * lib.template_wheelbase_mm[template] / 1000.0
+
+
+def length_reference(rows: list[dict], target_mm: float = 25.0) -> str:
+    """Pure front and rear views show no length: the default fit's error along the car on them,
+    against the other templates' mean position along the car (what the library says with no
+    photo), and what these two views alone leave the others of the issue's mean target."""
+    from carbody.library import load_library
+
+    lab = next((lab for lab in dict.fromkeys(case_label(r) for r in rows)
+                if lab.startswith("mixture, view known") and "λ=" not in lab), None)
+    rs = [r for r in rows if lab is not None and case_label(r) == lab and r["azimuth"] in (0, 180)
+          and "along_mm" in r]
+    if not rs:
+        return ""
+    lib = load_library()
+    reference = {}
+    for name in {r["template"] for r in rs}:
+        t = lib.template_names.index(name)
+        truth = lib.points(lib.original(t))[left_out(t)[4], 1] * lib.template_wheelbase_mm[t] / 1000.0
+        reference[name] = float(np.abs(library_mean_along(t) - truth).mean())
+    out = ["", f"Pure front and rear views ({lab}): mean error (mm), and along the car the fit's "
+           "against the other templates' mean position (no photo):", "",
+           "| view | 3D error | along the car: fit | library's mean |", "|---|---|---|---|"]
+    both = 0.0
+    for a in (0, 180):
+        ra = [r for r in rs if r["azimuth"] == a]
+        both += np.mean([r["mean_mm"] for r in ra])
+        out.append(f"| {a}° | {np.mean([r['mean_mm'] for r in ra]):.1f} | {np.mean([r['along_mm'] for r in ra]):.1f} "
+                   f"| {np.mean([reference[r['template']] for r in ra]):.1f} |")
+    n = len({r["azimuth"] for r in rows if case_label(r) == lab})
+    out += ["", f"The front and rear alone put {both / n:.1f} mm on the mean over the {n} views: a mean of "
+            f"{target_mm:g} mm asks the other {n - 2} for {(target_mm * n - both) / (n - 2):.1f} mm on average "
+            f"(they give {np.mean([r['mean_mm'] for r in rows if case_label(r) == lab and r['azimuth'] not in (0, 180)]):.1f})."]
     return "\n".join(out)
 
 
@@ -405,6 +452,7 @@ def main(argv=None) -> int:
             print(f"| {method} | {e.mean():.1f} % | {np.median(e):.1f} % | {e.max():.1f} %{failed} |")
     print(per_car(rows))
     print(calibration(rows))
+    print(length_reference(rows))
     for label in dict.fromkeys(case_label(r) for r in rows):
         if "λ=" in label:
             continue
