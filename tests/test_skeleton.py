@@ -128,18 +128,15 @@ def test_no_pair_in_a_shape_too_thin_to_cut():
     assert optimal_pairs(pts, outward_normals_2d(pts), min_height=40) == []
 
 
-def test_skeleton_of_every_template_region_is_fast_and_found(templates):
-    import time
-
+def test_skeleton_of_every_template_region_is_found(templates):
+    # its speed (budget 0.1 s a region) is measured in benchmarks/bench_surface.py, not here
     from carbody.surface.body import region_skeleton, wheelbase_of
     from carbody.surface.regions import region_outlines
 
     row, wf = templates[0]
     wb = wheelbase_of(wf.control_points)
     for outline in region_outlines(wf.control_points):
-        t = time.perf_counter()
         sk = region_skeleton(outline, wb)
-        assert time.perf_counter() - t < 0.5  # budget 0.1 s, measured in benchmarks/bench_surface.py
         assert len(sk.line) == len(sk.pairs) + 2
         spacing = np.linalg.norm(np.diff(np.r_[sk.samples.points2d, sk.samples.points2d[:1]], axis=0), axis=1)
         assert np.median(spacing) == pytest.approx(20.0, rel=0.15)
