@@ -279,15 +279,17 @@ def calibration(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
-def library_mean_along(template: int) -> np.ndarray:
-    """(35,) mm: each keypoint's position along the car as the other templates' mean says it
-    (normalised, read at this template's wheelbase) — what a prior alone knows of the length."""
+def library_mean_along_error(template: int) -> float:
+    """Mean error (mm) along the car of each keypoint placed where the other templates' mean puts
+    it (normalised, read at this template's wheelbase): what the library alone knows of the
+    length of a car it has never seen."""
     from carbody.library import load_library
 
     lib = load_library()
     idx = left_out(template)[4]
     along = np.array([lib.points(lib.original(t))[idx, 1] for t in range(len(lib.template_names))])
-    return np.delete(along, template, axis=0).mean(axis=0) * lib.template_wheelbase_mm[template] / 1000.0
+    guess = np.delete(along, template, axis=0).mean(axis=0)
+    return float(np.abs(guess - along[template]).mean() * lib.template_wheelbase_mm[template] / 1000.0)
 
 
 def length_reference(rows: list[dict], target_mm: float = 25.0) -> str:
@@ -298,16 +300,11 @@ def length_reference(rows: list[dict], target_mm: float = 25.0) -> str:
 
     lab = next((lab for lab in dict.fromkeys(case_label(r) for r in rows)
                 if lab.startswith("mixture, view known") and "λ=" not in lab), None)
-    rs = [r for r in rows if lab is not None and case_label(r) == lab and r["azimuth"] in (0, 180)
-          and "along_mm" in r]
-    if not rs:
+    rs = [r for r in rows if lab is not None and case_label(r) == lab and "along_mm" in r]
+    views = {r["azimuth"] for r in rs}
+    if not {0, 180} <= views:
         return ""
-    lib = load_library()
-    reference = {}
-    for name in {r["template"] for r in rs}:
-        t = lib.template_names.index(name)
-        truth = lib.points(lib.original(t))[left_out(t)[4], 1] * lib.template_wheelbase_mm[t] / 1000.0
-        reference[name] = float(np.abs(library_mean_along(t) - truth).mean())
+    names = list(load_library().template_names)
     out = ["", f"Pure front and rear views ({lab}): mean error (mm), and along the car the fit's "
            "against the other templates' mean position (no photo):", "",
            "| view | 3D error | along the car: fit | library's mean |", "|---|---|---|---|"]
@@ -315,12 +312,15 @@ def length_reference(rows: list[dict], target_mm: float = 25.0) -> str:
     for a in (0, 180):
         ra = [r for r in rs if r["azimuth"] == a]
         both += np.mean([r["mean_mm"] for r in ra])
-        out.append(f"| {a}° | {np.mean([r['mean_mm'] for r in ra]):.1f} | {np.mean([r['along_mm'] for r in ra]):.1f} "
-                   f"| {np.mean([reference[r['template']] for r in ra]):.1f} |")
-    n = len({r["azimuth"] for r in rows if case_label(r) == lab})
+        reference = np.mean([library_mean_along_error(names.index(r["template"])) for r in ra])
+        out.append(f"| {a}° | {np.mean([r['mean_mm'] for r in ra]):.1f} "
+                   f"| {np.mean([r['along_mm'] for r in ra]):.1f} | {reference:.1f} |")
+    n, others = len(views), np.mean([r["mean_mm"] for r in rs if r["azimuth"] not in (0, 180)])
+    need = (target_mm * n - both) / (n - 2)
+    asks = (f"asks the other {n - 2} for {need:.1f} mm on average" if need > 0 else
+            f"is out of reach whatever the other {n - 2} give")
     out += ["", f"The front and rear alone put {both / n:.1f} mm on the mean over the {n} views: a mean of "
-            f"{target_mm:g} mm asks the other {n - 2} for {(target_mm * n - both) / (n - 2):.1f} mm on average "
-            f"(they give {np.mean([r['mean_mm'] for r in rows if case_label(r) == lab and r['azimuth'] not in (0, 180)]):.1f})."]
+            f"{target_mm:g} mm {asks} (they give {others:.1f})."]
     return "\n".join(out)
 
 
