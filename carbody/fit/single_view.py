@@ -53,8 +53,9 @@ def prepared(library: Library, method: str, wheelbase_mm: float | None = None, f
 #: right across the car (:func:`~carbody.fit.deform.joint_field_basis`), solved with the mix. A
 #: car's pillar or window end that sits off every template's is then taken up there, not by
 #: bending the whole mix (on a near-side view, a car made 10 % wider moves such a point in the
-#: image as well). Chosen on the leave-one-out benchmark (BENCHMARKS.md: 0.2–0.7 tried, the
-#: broad part instead was worse); the deformation after the fit is unchanged.
+#: image as well). Chosen on the leave-one-out benchmark (BENCHMARKS.md; ``bench_fit_accuracy.py
+#: --joint-field A`` reruns 0.2–0.7: larger lowers the level mean, raises the 10° one and the
+#: pickup's max; the broad part instead was worse); the deformation after the fit is unchanged.
 JOINT_FIELD_AMPLITUDE = 0.3
 
 
