@@ -99,8 +99,9 @@ def left_out(t: int):
             load_topology().keypoint_point_indices)
 
 
-def set_joint_field(joint: tuple[float, tuple | None] | None) -> None:
-    """In a worker: the joint field's amplitude and lengths (None: the defaults)."""
+def set_joint_field(joint: tuple[float, tuple | None, bool] | None) -> None:
+    """In a worker: the joint field's amplitude and lengths (None: the defaults), and whether
+    the deformation's broad part joins the prior instead of its local one."""
     if joint is None:
         return
     import carbody.fit.deform as deform
@@ -109,6 +110,9 @@ def set_joint_field(joint: tuple[float, tuple | None] | None) -> None:
     single_view.JOINT_FIELD_AMPLITUDE = joint[0]
     if joint[1] is not None:
         deform.JOINT_LENGTH = joint[1]
+    if joint[2]:
+        single_view.joint_field_basis = lambda reference, topology: deform._field_basis(
+            reference, topology, (deform.FIELD_SIGMA,) * 3, deform.FIELD_LENGTH)
 
 
 def run_template(args) -> list[dict]:
@@ -366,6 +370,9 @@ def main(argv=None) -> int:
                          "none; default JOINT_FIELD_AMPLITUDE) and correlation lengths across, "
                          "along the car and up (normalised units; default JOINT_LENGTH), to rerun "
                          "the choice")
+    ap.add_argument("--broad-joint-field", action="store_true",
+                    help="the deformation's broad part (FIELD_SIGMA, FIELD_LENGTH) inside the "
+                         "shape prior instead of its local one, at --joint-field's amplitude")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -374,7 +381,11 @@ def main(argv=None) -> int:
         values = [float(v) for v in args.joint_field.split(",")]
         if len(values) not in (1, 4) or values[0] < 0:
             ap.error("--joint-field takes an amplitude ≥ 0, optionally followed by three lengths")
-        joint = (values[0], tuple(values[1:]) or None)
+        joint = (values[0], tuple(values[1:]) or None, args.broad_joint_field)
+    elif args.broad_joint_field:
+        from carbody.fit.single_view import JOINT_FIELD_AMPLITUDE
+
+        joint = (JOINT_FIELD_AMPLITUDE, None, True)
 
     n_templates = len(load_library().template_names)
     templates = [0, 5, 9] if args.quick else list(range(n_templates))
@@ -428,7 +439,8 @@ def main(argv=None) -> int:
           f"elevation {args.elevation:g}°, "
           f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}"
           f"{f', its axis {args.off_centre:g}° off the car' if args.off_centre else ''}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image"
-          f"{'' if joint is None else f', joint field {args.joint_field}'} "
+          f"{'' if joint is None else f', joint field {args.joint_field or joint[0]}'}"
+          f"{' (the broad part)' if args.broad_joint_field else ''} "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
     found = [r for r in rows if r.get("camera") == "auto" and not r.get("focal_known")
