@@ -283,32 +283,32 @@ def calibration(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
-def library_mean_along_error(template: int) -> float:
-    """Mean error (mm) along the car of each keypoint placed where the other templates' mean puts
-    it (normalised, read at this template's wheelbase): what the library alone knows of the
-    length of a car it has never seen."""
+def library_mean_along_errors() -> dict[str, float]:
+    """{template: mean error (mm) along the car of its keypoints placed where the other
+    templates' mean puts them (normalised, read at its wheelbase)}: what the library alone knows
+    of the length of a car it has never seen."""
     from carbody.library import load_library
+    from carbody.topology import load_topology
 
     lib = load_library()
-    idx = left_out(template)[4]
+    idx = load_topology().keypoint_point_indices
     along = np.array([lib.points(lib.original(t))[idx, 1] for t in range(len(lib.template_names))])
-    guess = np.delete(along, template, axis=0).mean(axis=0)
-    return float(np.abs(guess - along[template]).mean() * lib.template_wheelbase_mm[template] / 1000.0)
+    return {name: float(np.abs(np.delete(along, t, axis=0).mean(axis=0) - along[t]).mean()
+                        * lib.template_wheelbase_mm[t] / 1000.0)
+            for t, name in enumerate(lib.template_names)}
 
 
 def length_reference(rows: list[dict], target_mm: float = 25.0) -> str:
     """Pure front and rear views show no length: the default fit's error along the car on them,
     against the other templates' mean position along the car (what the library says with no
     photo), and what these two views alone leave the others of the issue's mean target."""
-    from carbody.library import load_library
-
     lab = next((lab for lab in dict.fromkeys(case_label(r) for r in rows)
                 if lab.startswith("mixture, view known") and "λ=" not in lab), None)
     rs = [r for r in rows if lab is not None and case_label(r) == lab and "along_mm" in r]
     views = {r["azimuth"] for r in rs}
     if not {0, 180} <= views:
         return ""
-    names = list(load_library().template_names)
+    reference = library_mean_along_errors()
     out = ["", f"Pure front and rear views ({lab}): mean error (mm), and along the car the fit's "
            "against the other templates' mean position (no photo):", "",
            "| view | 3D error | along the car: fit | library's mean |", "|---|---|---|---|"]
@@ -316,9 +316,9 @@ def length_reference(rows: list[dict], target_mm: float = 25.0) -> str:
     for a in (0, 180):
         ra = [r for r in rs if r["azimuth"] == a]
         both += np.mean([r["mean_mm"] for r in ra])
-        reference = np.mean([library_mean_along_error(names.index(r["template"])) for r in ra])
         out.append(f"| {a}° | {np.mean([r['mean_mm'] for r in ra]):.1f} "
-                   f"| {np.mean([r['along_mm'] for r in ra]):.1f} | {reference:.1f} |")
+                   f"| {np.mean([r['along_mm'] for r in ra]):.1f} "
+                   f"| {np.mean([reference[r['template']] for r in ra]):.1f} |")
     n, others = len(views), np.mean([r["mean_mm"] for r in rs if r["azimuth"] not in (0, 180)])
     need = (target_mm * n - both) / (n - 2)
     asks = (f"asks the other {n - 2} for {need:.1f} mm on average" if need > 0 else

@@ -103,10 +103,11 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     prepared.__globals__["_PREPARED"].clear()
     built = prepared(lib, "gauss")
+    library_part = prepared(lib, "gauss", field=False).basis.shape[1]
     print(f"Shape model build (once per library, PCA of S): {time.perf_counter() - t0:.2f} s; "
-          f"{prepared(lib, 'gauss', field=False).basis.shape[1]} library directions "
+          f"{library_part} library directions "
           f"({prepared(lib, 'gauss', 2650.0, field=False).basis.shape[1]} sized in mm, wheelbase told) "
-          f"and {built.basis.shape[1] - prepared(lib, 'gauss', field=False).basis.shape[1]} of the joint field")
+          f"and {built.basis.shape[1] - library_part} of the joint field")
 
     print("\n## Full fit with view refinement at 3528 models (given view 30°; median of 5)\n")
     print("| method | camera | s | refined azimuth |")

@@ -626,9 +626,8 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     i = np.argmin(cost(grid), axis=1)
     rows = np.arange(len(ams))
     lo, hi = grid[rows, np.maximum(i - 1, 0)], grid[rows, np.minimum(i + 1, grid.shape[1] - 1)]
-    steps = _SCALE_STEPS
     for _ in range(SCALE_PASSES):  # each pass narrows the bracket 8×, all centres at once
-        grid = lo[:, None] + (hi - lo)[:, None] * steps
+        grid = lo[:, None] + (hi - lo)[:, None] * _SCALE_STEPS
         costs = cost(grid)
         i = np.clip(np.argmin(costs, axis=1), 1, 15)
         lo, hi = grid[rows, i - 1], grid[rows, i + 1]
