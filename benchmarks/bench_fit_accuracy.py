@@ -99,13 +99,18 @@ def left_out(t: int):
             load_topology().keypoint_point_indices)
 
 
-def set_joint_field(joint: tuple[float, tuple | None, bool] | None) -> None:
-    """In a worker: the joint field's amplitude and lengths (None: the defaults), and whether
-    the deformation's broad part joins the prior instead of its local one."""
-    if joint is None:
-        return
+def set_joint_field(joint: tuple[float, tuple | None, bool] | None,
+                    deform_length: tuple[float, float, float] | None = None) -> None:
+    """In a worker: the joint field's amplitude and lengths (None: the defaults), whether the
+    deformation's broad part joins the prior instead of its local one, and the correlation
+    lengths of the post-fit deformation's local part (None: ``LOCAL_LENGTH``)."""
     import carbody.fit.deform as deform
     import carbody.fit.single_view as single_view
+
+    if deform_length is not None:
+        deform.LOCAL_LENGTH = deform_length
+    if joint is None:
+        return
 
     single_view.JOINT_FIELD_AMPLITUDE = joint[0]
     if joint[1] is not None:
@@ -373,8 +378,19 @@ def main(argv=None) -> int:
     ap.add_argument("--broad-joint-field", action="store_true",
                     help="the deformation's broad part (FIELD_SIGMA, FIELD_LENGTH) inside the "
                          "shape prior instead of its local one, at --joint-field's amplitude")
+    ap.add_argument("--deform-length", metavar="LX,LY,LZ",
+                    help="correlation lengths across, along the car and up (normalised units) of "
+                         "the local part of the deformation after the fit (default LOCAL_LENGTH in "
+                         "every direction); e.g. 800,120,120 correlates it across the car like the "
+                         "joint field")
     args = ap.parse_args(argv)
     from carbody.library import load_library
+
+    deform_length = None
+    if args.deform_length:
+        deform_length = tuple(float(v) for v in args.deform_length.split(","))
+        if len(deform_length) != 3 or min(deform_length) <= 0:
+            ap.error("--deform-length takes three lengths > 0")
 
     joint = None
     if args.joint_field:
@@ -432,7 +448,7 @@ def main(argv=None) -> int:
         cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(args.workers, initializer=set_joint_field, initargs=(joint,)) as pool:
+    with ProcessPoolExecutor(args.workers, initializer=set_joint_field, initargs=(joint, deform_length)) as pool:
         rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance, args.noise, args.off_centre)
                                                          for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
@@ -440,7 +456,8 @@ def main(argv=None) -> int:
           f"{'orthographic' if args.distance is None else f'pinhole camera at {args.distance:g} mm'}"
           f"{f', its axis {args.off_centre:g}° off the car' if args.off_centre else ''}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image"
           f"{'' if joint is None else f', joint field {args.joint_field or joint[0]}'}"
-          f"{' (the broad part)' if args.broad_joint_field else ''} "
+          f"{' (the broad part)' if args.broad_joint_field else ''}"
+          f"{f', deformation lengths {args.deform_length}' if deform_length else ''} "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
     found = [r for r in rows if r.get("camera") == "auto" and not r.get("focal_known")
