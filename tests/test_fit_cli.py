@@ -89,6 +89,36 @@ def test_fit_writes_step_overlay_and_report(photo):
     assert read_image(out / "u.png").shape[0] > 500  # the four-view drawing with expected errors
 
 
+def test_a_phone_photo_stored_on_its_side_is_read_upright(photo, tmp_path):
+    """A phone stores a photo as its sensor read it and tags the turn in EXIF (orientation 6:
+    turn 90° clockwise); the keypoints were marked on the upright picture, as labelme shows it.
+    The fit reads it upright: same size, same fit, overlay upright."""
+    import cv2
+    from PIL import Image
+
+    from carbody.view.predict import read_image
+
+    upright = cv2.imread(str(photo / "car.png"))[..., ::-1]
+    stored = Image.fromarray(np.ascontiguousarray(np.rot90(upright, 1)))   # on its side
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    stored.save(tmp_path / "car.jpg", exif=exif, quality=95)
+    assert np.abs(read_image(tmp_path / "car.jpg").astype(int) - upright).mean() < 3
+    marks = json.loads((photo / "car.json").read_text())
+    marks.update(image="car.jpg", image_size=[1000, 600])
+    (tmp_path / "car.json").write_text(json.dumps(marks))
+    runs = {}
+    for name in ("car.jpg", "car.png"):
+        folder = photo if name == "car.png" else tmp_path
+        report = tmp_path / f"{name}.json"
+        run_cli("fit", str(folder / name), "--keypoints", str(tmp_path / "car.json"), "--view", "30",
+                "--exclude-template", "Volvo V60", "-o", str(tmp_path / f"{name}.step"),
+                "--overlay", str(tmp_path / f"{name}.png"), "--report", str(report), check=True)
+        runs[name] = json.loads(report.read_text())
+    assert read_image(tmp_path / "car.jpg.png").shape == (600, 1000, 3)
+    assert runs["car.jpg"]["keypoints_mm"] == runs["car.png"]["keypoints_mm"]
+
+
 def test_visible_keypoints_command():
     proc = run_cli("visible-keypoints", "--view", "90", check=True)
     assert "rear_arch_top" in proc.stdout and "_right" not in proc.stdout

@@ -137,8 +137,9 @@ def test_focal_length_from_35mm_equivalent_or_exif(tmp_path):
     from carbody.errors import FitError
     from carbody.fit.focal import FILM_DIAGONAL_MM, focal_length_px
 
-    def photo(name, size, exif_size):
+    def photo(name, size, exif_size, orientation=1):
         exif = Image.Exif()
+        exif[0x0112] = orientation
         ifd = exif.get_ifd(0x8769)
         ifd[0xA405], ifd[0xA002], ifd[0xA003] = 26, *exif_size
         Image.new("RGB", size).save(tmp_path / name, exif=exif)
@@ -147,6 +148,9 @@ def test_focal_length_from_35mm_equivalent_or_exif(tmp_path):
     f, source = focal_length_px(photo("a.jpg", (400, 300), (400, 300)), (400, 300), None)
     assert f == pytest.approx(26 * 500 / FILM_DIAGONAL_MM) and "EXIF" in source
     assert focal_length_px(photo("b.jpg", (400, 300), (800, 600)), (400, 300), None) == (None, "")
+    # stored on its side (EXIF orientation 6), read upright: 300 x 400
+    f, source = focal_length_px(photo("c.jpg", (400, 300), (400, 300), 6), (300, 400), None)
+    assert f == pytest.approx(26 * 500 / FILM_DIAGONAL_MM) and "EXIF" in source
     assert focal_length_px(tmp_path / "missing.png", (400, 300), 50.0)[0] == pytest.approx(50 * 500 / FILM_DIAGONAL_MM)
     with pytest.raises(FitError, match="focal length"):
         focal_length_px(tmp_path / "missing.png", (400, 300), -1.0)

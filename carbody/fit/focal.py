@@ -16,10 +16,11 @@ FILM_DIAGONAL_MM = 43.27
 def focal_length_px(image: str | Path | None, size: tuple[int, int],
                     focal_35mm: float | None) -> tuple[float | None, str]:
     """The focal length in pixels from a 35 mm-equivalent one, else from the photo's EXIF
-    (``FocalLengthIn35mmFilm``, used only when the EXIF image size is the photo's: a cropped or
-    resized photo's EXIF no longer fits it; ``image`` None: no file to read). Returns (pixels or
+    (``FocalLengthIn35mmFilm``, used only when the EXIF image size is the photo's, turned upright:
+    a cropped or resized photo's EXIF no longer fits it; ``image`` None: no file to read). Returns (pixels or
     None, where it came from)."""
     from carbody.errors import FitError
+    from carbody.view.predict import exif_orientation
 
     diagonal = math.hypot(*size)
     if focal_35mm is not None:
@@ -36,6 +37,8 @@ def focal_length_px(image: str | Path | None, size: tuple[int, int],
     except Exception:  # no readable EXIF: the fit finds the distance from perspective
         return None, ""
     f35, width, height = exif.get(0xA405), exif.get(0xA002), exif.get(0xA003)
+    if exif_orientation(image) >= 5:  # stored on its side; ``size`` is the upright picture's
+        width, height = height, width
     if not f35 or (width, height) != tuple(size):
         return None, ""
     return float(f35) * diagonal / FILM_DIAGONAL_MM, f"EXIF {float(f35):g} mm (35 mm equivalent)"

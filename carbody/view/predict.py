@@ -63,8 +63,40 @@ class ViewPrediction:
                 "probabilities": {f"{int(a)}": round(float(p), 4) for a, p in zip(CLASS_ANGLES_DEG, self.probabilities)}}
 
 
+def exif_orientation(path: str | Path) -> int:
+    """The EXIF orientation tag (1–8) of an image file, 1 when it has none or it cannot be read.
+
+    A phone stores a photo as its sensor read it and tags how to turn it upright; viewers and
+    annotation tools (labelme, CVAT) show it turned, so keypoints are marked on the turned
+    picture.
+    """
+    try:
+        from PIL import Image
+
+        with Image.open(path) as im:
+            value = int(im.getexif().get(0x0112, 1))
+    except Exception:  # no EXIF, or not a format PIL reads: as stored
+        return 1
+    return value if 1 <= value <= 8 else 1
+
+
+def upright(arr: np.ndarray, orientation: int) -> np.ndarray:
+    """The picture ``arr`` (h, w[, c]) as an EXIF ``orientation`` (1–8) says it is seen."""
+    if orientation in (5, 6, 7, 8):
+        arr = np.swapaxes(arr, 0, 1)                # transpose, then as 2, 1, 3, 4 below
+        orientation = {5: 1, 6: 2, 7: 3, 8: 4}[orientation]
+    if orientation in (2, 3):
+        arr = arr[:, ::-1]
+    if orientation in (3, 4):
+        arr = arr[::-1]
+    return arr
+
+
 def read_image(image) -> np.ndarray:
     """(h, w, 3) uint8 RGB from a path or an array (gray, gray+alpha, RGB, RGBA; 8 or 16 bit).
+
+    A file is turned upright as its EXIF orientation says (:func:`exif_orientation`), as photo
+    viewers and annotation tools show it.
 
     Raises:
         ImageError: missing or empty file, not an image, empty or tiny picture.
@@ -83,6 +115,7 @@ def read_image(image) -> np.ndarray:
             raise ImageError(f"{path}: not an image (cannot decode it)")
         if arr.ndim == 3 and arr.shape[2] >= 3:    # OpenCV decodes to BGR(A)
             arr = cv2.cvtColor(arr, cv2.COLOR_BGRA2RGBA if arr.shape[2] == 4 else cv2.COLOR_BGR2RGB)
+        arr = upright(arr, exif_orientation(path))  # IMREAD_UNCHANGED leaves the EXIF turn to us
         name = str(path)
     else:
         arr = np.asarray(image)
