@@ -3,12 +3,13 @@
 Each stage keeps its subcommands in its own ``cli`` module with an ``add_parsers(subparsers)``
 function; handlers import their heavy dependencies (OCP, torch, VTK) when they run, so
 ``carbody --help`` stays instant. Any :class:`~carbody.errors.CarbodyError` becomes one line on
-stderr and exit code 2.
+stderr and exit code 2; output piped into a reader that stops early (``| head``) ends quietly.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from carbody.errors import CarbodyError
@@ -46,6 +47,11 @@ def main(argv: list[str] | None = None) -> int:
     except CarbodyError as exc:
         print(f"carbody {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # The reader left (``carbody visible-keypoints --view 30 | head``): stop quietly, and
+        # keep Python from complaining again when it flushes stdout at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, as a shell reports a command its pipe closed on
 
 
 if __name__ == "__main__":

@@ -1,5 +1,6 @@
 """``carbody fit`` and ``carbody visible-keypoints`` end to end, and their refusals."""
 import json
+import os
 
 import numpy as np
 import pytest
@@ -128,6 +129,23 @@ def test_visible_keypoints_command():
     assert "4000 mm away" in close
     inside = run_cli("visible-keypoints", "--view", "60", "--distance", "300")
     assert inside.returncode == 2 and "inside the car" in inside.stderr
+
+
+def test_output_into_a_closed_pipe_ends_quietly():
+    """``carbody visible-keypoints --view 30 | head -1``: the reader leaves early; no traceback."""
+    import subprocess
+    import sys
+
+    from tests.conftest import REPO
+
+    read, write = os.pipe()
+    os.close(read)  # the reader is gone before the first line
+    try:
+        proc = subprocess.run([sys.executable, "-m", "carbody", "visible-keypoints", "--view", "30"],
+                              stdout=write, stderr=subprocess.PIPE, text=True, cwd=REPO)
+    finally:
+        os.close(write)
+    assert proc.returncode == 141 and proc.stderr == ""
 
 
 def _bad(photo, tmp_path, keypoints=None, view="30", image=None, extra=()):
