@@ -52,6 +52,11 @@ def main(argv: list[str] | None = None) -> int:
         # keep Python from complaining again when it flushes stdout at exit.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141  # 128 + SIGPIPE, as a shell reports a command its pipe closed on
+    except OSError as exc:
+        # The file system said no after the checks passed (disk full, a folder removed meanwhile).
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"carbody {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -46,3 +46,7 @@ class ImageError(CarbodyError):
 
 class SurfaceError(CarbodyError):
     """A region of the wireframe cannot be surfaced (open loop, self-crossing, zero area)."""
+
+
+class OutputError(CarbodyError):
+    """An output file or folder cannot be written (no such folder, no permission, wrong type)."""

@@ -16,6 +16,7 @@ import tempfile
 from pathlib import Path
 
 from carbody.errors import CarbodyError
+from carbody.outputs import check_output_file
 
 WORKBENCH = Path(__file__).resolve().parents[1] / "workbench"
 
@@ -53,11 +54,10 @@ def run_freecad(args: argparse.Namespace) -> int:
     if not exe or not os.path.isfile(exe):
         raise FreeCADError(f"FreeCAD is not installed: {args.freecadcmd!r} not found "
                            "(Debian: apt-get install freecad-python3)")
+    check_output_file(args.output)
     for name in ("wireframe.step", "body.step", "report.json"):
         if not (args.folder / name).is_file():
             raise FreeCADError(f"{args.folder}: no {name} (not a `carbody reconstruct` folder)")
-    if not args.output.parent.is_dir():
-        raise FreeCADError(f"{args.output}: folder {args.output.parent} does not exist")
     with tempfile.TemporaryDirectory(dir=args.output.parent, prefix=".carbody-fc-") as tmp:
         target = Path(tmp) / "doc.FCStd"
         script = Path(tmp) / "build.py"

@@ -23,14 +23,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from carbody.errors import CarbodyError, KeypointError
+from carbody.errors import CarbodyError, KeypointError, OutputError
 
 #: The stages, in order, as the progress display names them.
 STAGES = ("view", "fit", "surfaces")
-
-
-class OutputError(CarbodyError):
-    """The output folder cannot be created or written."""
 
 
 @dataclass

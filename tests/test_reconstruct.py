@@ -171,6 +171,30 @@ def test_an_unwritable_output_folder_is_refused_before_any_work(tmp_path):
     assert proc.returncode == 2 and len(lines) == 1 and "cannot write the output folder" in lines[0]
 
 
+@pytest.mark.parametrize("command, refused", [
+    (("fit", "{photo}", "-k", "{keypoints}", "--view", "30", "-o", "{tmp}/a.step", "--report", "/proc/r.json"),
+     "cannot write in /proc"),
+    (("fit", "{photo}", "-k", "{keypoints}", "--view", "30", "-o", "{tmp}/a.step", "--overlay", "{tmp}/o.txt"),
+     "written here as .png / .jpg / .jpeg, not .txt"),
+    (("fit", "{photo}", "-k", "{keypoints}", "--view", "30", "-o", "{tmp}"), "is a folder"),
+    (("surface", "{wire}", "-o", "{tmp}/b.step", "--png", "{tmp}/b.jpg"), "written here as .png, not .jpg"),
+    (("surface", "{wire}", "-o", "{tmp}/b.step", "--report", "{tmp}/no/r.json"), "does not exist"),
+    (("skeleton", "{wire}", "--region", "roof", "--png", "{tmp}/s"), "not a file without an ending"),
+    (("templates", "show", "Volvo V60", "--png", "/proc/t.png"), "cannot write in /proc"),
+    (("freecad", "{tmp}", "-o", "/proc/x.FCStd"), "cannot write in /proc"),
+    (("train-view", "{tmp}", "-o", "/proc/w.pt"), "cannot write in /proc"),
+])
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path, command, refused):
+    """Every command checks its output files first: one line, exit 2, nothing written."""
+    wire = REPO / "templates_step" / "volvo_v60.step"
+    args = [a.format(photo=PHOTO, keypoints=KEYPOINTS, tmp=tmp_path, wire=wire) for a in command]
+    proc = run_cli(*args)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert refused in lines[0], lines[0]
+    assert not any(tmp_path.iterdir())
+
+
 def test_an_unreadable_photo_is_refused(tmp_path):
     junk = tmp_path / "car.png"
     junk.write_bytes(b"not an image at all")

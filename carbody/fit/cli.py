@@ -112,6 +112,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
+    from carbody.outputs import PHOTO, PICTURE, check_output_file
     from carbody.view.predict import read_image
     from carbody.wireframe import write_wireframe
 
@@ -125,9 +126,15 @@ def run_fit(args: argparse.Namespace) -> int:
     for name in args.exclude_template:
         library = library.without(_match_template(library, name))
     truth = _truth(args.truth) if args.truth else None
-    for out in (args.output, args.overlay, args.report, args.uncertainty):
-        if out and not Path(out).resolve().parent.is_dir():
-            raise FitError(f"{out}: its folder does not exist")
+    check_output_file(args.output)
+    if args.overlay:
+        check_output_file(args.overlay, PHOTO)
+    if args.uncertainty:
+        check_output_file(args.uncertainty, PICTURE)
+    if args.report:
+        check_output_file(args.report)
+        if truth is not None:
+            check_output_file(Path(args.report).with_suffix(".errors.png"))
     if args.uncertainty and args.method == "paper":
         raise FitError("--uncertainty needs a Gaussian-prior method (mixture or gauss): "
                        "the paper's solve has no posterior")

@@ -62,13 +62,14 @@ def read_surface_wireframe(path: Path):
 def _surface(args) -> int:
     import time
 
+    from carbody.outputs import PICTURE, check_output_file
     from carbody.surface.body import build_body, write_body
 
-    from carbody.errors import SurfaceError
-
-    for out in (args.output, args.report, args.png):  # refuse before any work, write nothing
-        if out is not None and not Path(out).resolve().parent.is_dir():
-            raise SurfaceError(f"{out}: folder {Path(out).resolve().parent} does not exist")
+    check_output_file(args.output)  # refuse before any work, write nothing
+    if args.report:
+        check_output_file(args.report)
+    if args.png:
+        check_output_file(args.png, PICTURE)
     t0 = time.perf_counter()
     wf = read_surface_wireframe(args.wireframe)
     t1 = time.perf_counter()
@@ -102,6 +103,10 @@ def _skeleton(args) -> int:
     names = [r.name for r in topo.regions]
     if args.region not in names:
         raise SurfaceError(f"unknown region {args.region!r} (known: {', '.join(names)})")
+    if args.png:
+        from carbody.outputs import PICTURE, check_output_file
+
+        check_output_file(args.png, PICTURE)
     wf = read_surface_wireframe(args.wireframe)
     cp = wf.control_points
     outline = region_outline(cp, topo.region(args.region), outward_sign(cp, topo), topo)

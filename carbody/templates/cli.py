@@ -53,6 +53,10 @@ def _list(args) -> int:
 def _show(args) -> int:
     from carbody.templates import load_template
 
+    if args.png:
+        from carbody.outputs import PICTURE, check_output_file
+
+        check_output_file(args.png, PICTURE)
     wf = load_template(args.name, args.dir)
     if args.png:
         from carbody.occ.step_curves import atomic_write

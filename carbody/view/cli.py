@@ -60,8 +60,10 @@ def _render_dataset(args) -> int:
 
 
 def _train_view(args) -> int:
+    from carbody.outputs import check_output_file
     from carbody.view.train import TrainConfig, train_view_classifier
 
+    check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                       threads=args.threads, schedule=args.schedule)
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot)
