@@ -46,7 +46,8 @@ def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
     distance = parse_distance(args.distance)
     prepare_output_dir(args.out)  # fail before the work, not after
     truth = load_truth(args.truth) if args.truth else None
-    with tqdm(total=len(STAGES) + 1, desc="carbody", unit="stage", file=sys.stderr,
+    # The bar is for a person at a terminal: none in a log or a pipe (tqdm's ``disable=None``).
+    with tqdm(total=len(STAGES) + 1, desc="carbody", unit="stage", file=sys.stderr, disable=None,
               bar_format="{desc}: {n_fmt}/{total_fmt} {bar} {elapsed}") as bar:
         def on_stage(label: str) -> None:
             if bar.n or label != STAGES[0]:
