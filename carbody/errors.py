@@ -36,6 +36,18 @@ class AngleError(FitError):
     """A view angle given to the fit is not a number or lies outside its range."""
 
 
+class SideError(FitError):
+    """The keypoints' names say the photo shows the other side of the car than the view given.
+
+    Attributes:
+        mirror_azimuth: the mirror view's azimuth (360° − θ), which the marks fit.
+    """
+
+    def __init__(self, message: str, mirror_azimuth: float):
+        super().__init__(message)
+        self.mirror_azimuth = mirror_azimuth
+
+
 class KeypointError(FitError):
     """Keypoint annotations are unreadable, unknown, too few, degenerate, NaN or off the image."""
 

@@ -23,7 +23,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from carbody.errors import CarbodyError, KeypointError, OutputError
+from carbody.errors import CarbodyError, KeypointError, OutputError, SideError
 
 #: The stages, in order, as the progress display names them.
 STAGES = ("view", "fit", "surfaces")
@@ -37,7 +37,8 @@ class Reconstruction:
         name: the car (STEP product name).
         image: (h, w, 3) uint8 RGB photo.
         image_path: where the photo came from, if a file.
-        view_source: ``"given"`` or ``"classifier"``.
+        view_source: ``"given"``, ``"classifier"``, or the classifier's view mirrored when the
+            keypoints' names are of the other side (:class:`carbody.errors.SideError`).
         view_prediction: the classifier's answer (:class:`carbody.view.predict.ViewPrediction`) or None.
         fit: the wireframe fit (:class:`carbody.fit.FitResult`).
         body: the surfaced body (:class:`carbody.surface.Body`).
@@ -311,10 +312,20 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     from carbody.fit.focal import focal_length_px
 
     focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
-    fit = fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
-                        image_size=(w, h), wheelbase_mm=wheelbase_mm,
-                        camera_distance_mm=camera_distance_mm, principal_point=principal_point,
-                        focal_px=focal, name=name)
+
+    def fit_at(azimuth: float):
+        return fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
+                             image_size=(w, h), wheelbase_mm=wheelbase_mm,
+                             camera_distance_mm=camera_distance_mm, principal_point=principal_point,
+                             focal_px=focal, name=name)
+
+    try:
+        fit = fit_at(azimuth)
+    except SideError as exc:
+        if source != "classifier":
+            raise
+        # The classifier took the car's one side for the other; the marks' names tell which.
+        fit, source = fit_at(exc.mirror_azimuth), "classifier, mirrored: the keypoints are of the other side"
     timings["fit"] = time.perf_counter() - start
 
     start = stage("surfaces")

@@ -171,6 +171,43 @@ def test_an_unwritable_output_folder_is_refused_before_any_work(tmp_path):
     assert proc.returncode == 2 and len(lines) == 1 and "cannot write the output folder" in lines[0]
 
 
+def _other_side(marks: dict) -> dict:
+    """The keypoints of the photo flipped left-right: the car's right side, named so."""
+    from carbody.topology import load_topology
+
+    off_plane = {k.name for k in load_topology().keypoints if not k.on_symmetry_plane}
+    width = json.loads(KEYPOINTS.read_text())["image_size"][0]
+
+    def swap(n):
+        return n.removesuffix("_right") if n.endswith("_right") else n + "_right" if n in off_plane else n
+
+    return {swap(n): [width - u, v] for n, (u, v) in marks.items()}
+
+
+def test_the_keypoints_names_correct_the_classifier_s_side(tmp_path):
+    """The classifier sees the example's left side (30°); keypoints of the right side (the photo's
+    marks flipped and renamed) turn the view to its mirror, 330°, and fit as well there. Told
+    30°, the fit refuses them in one line."""
+    import carbody
+    from carbody.errors import SideError
+    from carbody.wireframe import read_wireframe
+
+    marks = _other_side(json.loads(KEYPOINTS.read_text())["keypoints"])
+    rec = carbody.reconstruct(PHOTO, marks)
+    report = rec.report(truth=read_wireframe(TRUTH))
+    assert "mirrored" in report["view"]["source"] and report["view"]["classifier"]["class_deg"] == 30
+    assert abs(report["view"]["azimuth_deg"] - 330) < 5
+    assert report["fit"]["error_mm_at_truth_wheelbase_mean"] < 20
+    with pytest.raises(SideError, match="330") as caught:
+        carbody.reconstruct(PHOTO, marks, view=30)
+    assert caught.value.mirror_azimuth == 330
+    (tmp_path / "k.json").write_text(json.dumps({"keypoints": marks}))
+    proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(tmp_path / "k.json"), "--view", "30",
+                       "-o", str(tmp_path / "out"))
+    assert proc.returncode == 2 and len(lines) == 1 and "other side" in lines[0]
+    assert not any((tmp_path / "out").iterdir())
+
+
 @pytest.mark.parametrize("command, refused", [
     (("fit", "{photo}", "-k", "{keypoints}", "--view", "30", "-o", "{tmp}/a.step", "--report", "/proc/r.json"),
      "cannot write in /proc"),

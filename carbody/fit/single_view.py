@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from carbody.errors import AngleError, FitError
+from carbody.errors import AngleError, FitError, SideError
 from carbody.camera import View, apply_homography, look_at_homography, project
 from carbody.fit.deform import DeformationField, joint_field_basis
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
@@ -412,6 +412,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
         AngleError: a view outside 0–360°.
+        SideError: the keypoints' names are of the car's other side (:func:`_check_side`).
         FitError: an unknown method or a bad wheelbase, or keypoints no model can match.
     """
     from carbody.camera import check_azimuth
@@ -429,6 +430,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
         library = load_library()
     slots, uv = check_keypoints(keypoints, image_size, load_topology())
+    _check_side(slots, view, library)
     principal = _principal_point(principal_point, image_size, focal_px)
     if focal_px is not None and not (np.isfinite(focal_px) and focal_px > 0):
         raise FitError(f"focal length {focal_px!r} px is not a positive number")
@@ -478,6 +480,27 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         if result.focal_px is not None:  # turned: now the focal length with the best evidence
             result = _looking_at_car(unturned, _best_focal(result, unturned, turn), **turn, rescan=True)
     return _deformed(result) if deform else result
+
+
+def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> None:
+    """Refuse a view from which many marks cannot be seen but from its mirror can: the photo
+    shows the car's other side (a classifier's left/right mistake, 30° given for 330°) or the
+    marks' left/right names are swapped. The refinement stays near the given view, so it could
+    only bend the car through itself to fit them.
+
+    Raises:
+        SideError: naming the mirror view.
+    """
+    from carbody.fit.visibility import marks_other_side
+
+    other = marks_other_side([s.name for s in slots], view, library_mean(library).reshape(-1, 3))
+    if other is None:
+        return
+    hidden, _ = other
+    mirror = (360.0 - view.azimuth) % 360.0
+    raise SideError(f"{len(hidden)} of the {len(slots)} keypoints ({', '.join(hidden[:3])}, …) are on a side of "
+                    f"the car a view of {view.azimuth:g}° cannot see, but one of {mirror:g}° can: the photo "
+                    f"shows the car's other side, or the marks' left/right names are swapped", mirror)
 
 
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,

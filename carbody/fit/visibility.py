@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from carbody.camera import View, camera_direction, perspective_factors, project
+from carbody.camera import View, camera_direction, mirror_view, perspective_factors, project
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
 from carbody.topology import Topology, load_topology
 
@@ -28,6 +28,14 @@ OCCLUSION_MARGIN = 0.02
 
 #: Samples per curve for region outlines.
 _SAMPLES = 8
+
+#: The marks say the photo shows the car's other side when at least this many of them …
+SIDE_MIN_HIDDEN = 3
+
+#: … and this fraction are hidden from the view but no more than ``SIDE_RATIO`` as many from
+#: its mirror (θ ↔ 360° − θ).
+SIDE_FRACTION = 0.25
+SIDE_RATIO = 1 / 3
 
 
 def _region_loops(control_points: np.ndarray, topo: Topology) -> list[np.ndarray]:
@@ -64,13 +72,15 @@ def _inside(poly: np.ndarray, q: np.ndarray) -> tuple[bool, float]:
 
 
 def visible_keypoints(view: View, control_points: np.ndarray | None = None,
-                      topology: Topology | None = None) -> list[str]:
+                      topology: Topology | None = None, occlusion: bool = True) -> list[str]:
     """Names of the keypoints (both halves) the view can see, in id order, left before right.
 
     Args:
         view: the camera; a pinhole view's distance and aim are in the unit of ``control_points``.
         control_points: (280, 3) float, the car (any unit); default the library's mean model
             (normalised units).
+        occlusion: also hide what a nearer region covers; off, a keypoint is seen when a region
+            at it faces the camera (cheaper).
     Raises:
         AngleError: a pinhole camera inside the car.
     """
@@ -105,7 +115,7 @@ def visible_keypoints(view: View, control_points: np.ndarray | None = None,
             regions.append((loop * sign, n * sign, junctions, sign[0] < 0))
 
     facing = [r for r in regions if r[1] @ toward_camera(r[0].mean(axis=0)) > FACING_COS]
-    outlines = [(project(r[0], view), r) for r in facing]
+    outlines = [(project(r[0], view), r) for r in facing] if occlusion else []
     seen = []
     for slot in keypoint_slots(topo).values():
         p = cp[slot.point_index] * slot.sign
@@ -150,3 +160,28 @@ def visible_slots(view: View, control_points: np.ndarray | None = None,
     """:func:`visible_keypoints` as slots."""
     slots = keypoint_slots(topology)
     return [slots[n] for n in visible_keypoints(view, control_points, topology)]
+
+
+def marks_other_side(names: list[str], view: View,
+                     control_points: np.ndarray | None = None) -> tuple[list[str], list[str]] | None:
+    """Whether keypoints marked on a photo say it shows the car's other side than ``view``'s:
+    a mark on the car's right flank (``door_front_bottom_right``) cannot be seen from the left.
+
+    Judged with ``control_points`` (default the library's mean car) and an orthographic camera
+    at the view's elevation: the marks on no region facing the view, and its mirror
+    (:func:`carbody.camera.mirror_view`). Near the front and rear both sides are seen and
+    nothing is said.
+
+    Returns:
+        (marks hidden from the view, marks hidden from its mirror) when the mirror explains the
+        marks far better (``SIDE_MIN_HIDDEN``, ``SIDE_FRACTION``, ``SIDE_RATIO``), else None.
+    """
+    level = View(view.azimuth, view.elevation, view.roll)
+    here = set(visible_keypoints(level, control_points, occlusion=False))
+    there = set(visible_keypoints(mirror_view(level), control_points, occlusion=False))
+    hidden_here = [n for n in names if n not in here]
+    hidden_there = [n for n in names if n not in there]
+    if len(hidden_here) >= max(SIDE_MIN_HIDDEN, SIDE_FRACTION * len(names)) \
+            and len(hidden_there) <= SIDE_RATIO * len(hidden_here):
+        return hidden_here, hidden_there
+    return None
