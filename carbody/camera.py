@@ -204,6 +204,16 @@ def mirror_view(view: View) -> View:
                 (-view.aim[0], view.aim[1], view.aim[2]))
 
 
+def read_view(text: str | float) -> float:
+    """A view as a person types it: an azimuth in degrees (0–360, else :class:`AngleError`) or a
+    name (:func:`parse_view`: ``"front 30"``, ``"rear 30"``, ``"side"``, ``"front 30 right"``)."""
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        return parse_view(text)
+    return check_azimuth(value)
+
+
 def parse_view(view: str | float) -> float:
     """View angle θ in degrees from a number or a name such as ``"front 30°"``, ``"side"``,
     ``"rear 30"``, ``"right side"``, ``"left 90"``.

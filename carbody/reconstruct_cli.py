@@ -16,9 +16,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("image", type=Path, help="the car photo (PNG, JPEG, ...)")
     p.add_argument("--keypoints", "-k", required=True, type=Path,
                    help="keypoints marked on the photo: the project's JSON, COCO keypoints or labelme")
-    p.add_argument("--view", type=float, default=None,
-                   help="view azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side); "
-                        "default: the shipped view classifier")
+    p.add_argument("--view", default=None,
+                   help="view azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side) "
+                        "or a name ('front 30', 'rear 30 right'); default: the shipped view classifier")
     p.add_argument("--wheelbase", type=float, default=None,
                    help="the car's wheelbase in mm (default: fitted); told, the fit also knows "
                         "the car's width and height in mm")
@@ -40,10 +40,12 @@ def load_truth(spec: str):
 def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
     from tqdm import tqdm
 
+    from carbody.camera import read_view
     from carbody.fit.cli import parse_distance
     from carbody.pipeline import STAGES, prepare_output_dir, reconstruct
 
     distance = parse_distance(args.distance)
+    view = None if args.view is None else read_view(args.view)
     prepare_output_dir(args.out)  # fail before the work, not after
     truth = load_truth(args.truth) if args.truth else None
     # The bar is for a person at a terminal: none in a log or a pipe (tqdm's ``disable=None``).
@@ -54,7 +56,7 @@ def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
                 bar.update(1)
             bar.set_description(label)
 
-        result = reconstruct(args.image, args.keypoints, args.view, args.wheelbase, name=args.name,
+        result = reconstruct(args.image, args.keypoints, view, args.wheelbase, name=args.name,
                              camera_distance_mm=distance,
                              principal_point=args.principal_point, focal_35mm=args.focal_35mm,
                              on_stage=on_stage)

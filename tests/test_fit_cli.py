@@ -129,6 +129,13 @@ def test_visible_keypoints_command():
     assert "4000 mm away" in close
     inside = run_cli("visible-keypoints", "--view", "60", "--distance", "300")
     assert inside.returncode == 2 and "inside the car" in inside.stderr
+    # a view as a person names it: rear 30 is 150°, front 30 right is 330°
+    assert run_cli("visible-keypoints", "--view", "rear 30", check=True).stdout == \
+        run_cli("visible-keypoints", "--view", "150", check=True).stdout
+    assert "330°" in run_cli("visible-keypoints", "--view", "front 30 right", check=True).stdout
+    for bad in ("abc", "400", "nan"):
+        refused = run_cli("visible-keypoints", "--view", bad)
+        assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
 
 
 def test_output_into_a_closed_pipe_ends_quietly():

@@ -506,3 +506,14 @@ def test_a_rough_scan_ranks_the_grid_and_the_full_solve_answers():
                             scan_at=lambda v: solution(v, "rough", 1.5))
     assert sol.kind == "full" and calls["rough"] >= 9 * 3
     assert abs(view.azimuth - 38.0) < 0.1 and abs(view.elevation - 10.0) < 0.1
+
+
+@pytest.mark.parametrize("template", ["Volvo V60", "Tesla Model 3"])
+def test_a_distant_camera_found_is_called_orthographic(library, template):
+    """An orthographic picture (SPEC's camera) fitted finding the distance: what is found is
+    orthographic, not a camera tens of kilometres away (PERSPECTIVE_FAR)."""
+    _, loo, truth = _left_out(library, template)
+    slots, uv = _observe(truth, View(30, 10), noise=1.0)
+    found = fit_wireframe({s.name: tuple(p) for s, p in zip(slots, uv)}, View(30, 10), loo,
+                          camera_distance_mm="auto")
+    assert found.camera_distance_mm is None or found.camera_distance_mm < 3e6

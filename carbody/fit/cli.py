@@ -54,7 +54,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("image", help="the photo (PNG, JPEG, ...)")
     p.add_argument("--keypoints", "-k", required=True,
                    help="keypoint file: project JSON, COCO keypoints or labelme")
-    p.add_argument("--view", required=True, help="view azimuth, degrees 0–360 (0 front, 90 left side)")
+    p.add_argument("--view", required=True, help="view azimuth, degrees 0–360 (0 front, 90 left side), or a "
+                                                 "name: 'front 30', 'side', 'rear 30', 'front 30 right'")
     p.add_argument("--elevation", type=float, default=0.0, help="starting camera elevation, degrees")
     p.add_argument("--roll", type=float, default=0.0,
                    help="camera roll of a tilted photo, degrees (kept as given: the refinement "
@@ -87,7 +88,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     v = sub.add_parser("visible-keypoints", help="list the keypoints a view can see",
                        description="Keypoints visible at a view, from the wireframe geometry "
                                    "(region normals and occlusion) of the library's mean car.")
-    v.add_argument("--view", required=True, help="view azimuth, degrees 0–360")
+    v.add_argument("--view", required=True, help="view azimuth, degrees 0–360, or a name ('rear 30')")
     v.add_argument("--elevation", type=float, default=0.0, help="camera elevation, degrees")
     v.add_argument("--template", default=None, help="use this template's geometry instead of the mean")
     v.add_argument("--distance", default="orthographic", metavar="MM|orthographic",
@@ -105,7 +106,7 @@ def _truth(spec: str):
 
 def run_fit(args: argparse.Namespace) -> int:
     from carbody.errors import FitError
-    from carbody.camera import View, check_azimuth
+    from carbody.camera import View, read_view
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
     from carbody.fit.report import build_report, draw_error_chart, expected_error_line, write_json
@@ -117,7 +118,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.wireframe import write_wireframe
 
     # Every input is checked before anything is written.
-    view = View(check_azimuth(args.view), args.elevation, args.roll)
+    view = View(read_view(args.view), args.elevation, args.roll)
     distance = parse_distance(args.distance)
     image = read_image(args.image)[..., ::-1].copy()  # RGB -> BGR: the overlay is drawn with OpenCV
     ann = read_keypoints(args.keypoints)
@@ -202,7 +203,7 @@ def _match_template(library, name: str) -> str:
 def run_visible(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from carbody.camera import View, check_azimuth
+    from carbody.camera import View, read_view
     from carbody.errors import FitError
     from carbody.fit.keypoints_io import keypoint_slots
     from carbody.fit.solve import car_centre
@@ -211,7 +212,7 @@ def run_visible(args: argparse.Namespace) -> int:
     from carbody.tolerances import NORMALISED_WHEELBASE
     from carbody.topology import load_topology
 
-    azimuth = check_azimuth(args.view)
+    azimuth = read_view(args.view)
     distance = parse_distance(args.distance)
     if distance == "auto":
         raise FitError("visible-keypoints needs a camera distance in mm or 'orthographic', not 'auto'")

@@ -45,6 +45,10 @@ DEFAULT_FREE = ("azimuth", "elevation")
 PERSPECTIVE_LENGTH = 1000.0
 PERSPECTIVE_RANGE = (0.0, 1.0)
 
+#: Below this ρ (a camera over 1000 wheelbases, ~3 km, away) the view is orthographic: the
+#: perspective is far below a pixel, and a distance of 10⁷ m is no one's camera.
+PERSPECTIVE_FAR = 1e-3
+
 #: Azimuth offsets (degrees) tried before the continuous refinement.
 AZIMUTH_SCAN_DEG = (-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0)
 
@@ -87,7 +91,7 @@ def refine_view(solve_at: Callable[[View], object], given: View, max_evaluations
         """View from (azimuth, elevation, roll, ρ)."""
         rho = float(x[3])
         return View(float(x[0]), float(x[1]), float(x[2]),
-                    None if rho <= 0 else PERSPECTIVE_LENGTH / rho, given.aim)
+                    None if rho <= PERSPECTIVE_FAR else PERSPECTIVE_LENGTH / rho, given.aim)
 
     rho0 = 0.0 if given.distance is None else PERSPECTIVE_LENGTH / given.distance
     ranked_by = scan_at if scan and scan_at is not None else solve_at
