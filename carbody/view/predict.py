@@ -83,7 +83,7 @@ def exif_orientation(path: str | Path) -> int:
 def upright(arr: np.ndarray, orientation: int) -> np.ndarray:
     """The picture ``arr`` (h, w[, c]) as an EXIF ``orientation`` (1–8) says it is seen."""
     if orientation in (5, 6, 7, 8):
-        arr = np.swapaxes(arr, 0, 1)                # transpose, then as 2, 1, 3, 4 below
+        arr = np.swapaxes(arr, 0, 1)                # transposed, 5–8 are 1–4 below
         orientation = {5: 1, 6: 2, 7: 3, 8: 4}[orientation]
     if orientation in (2, 3):
         arr = arr[:, ::-1]
