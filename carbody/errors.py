@@ -37,15 +37,16 @@ class AngleError(FitError):
 
 
 class SideError(FitError):
-    """The keypoints' names say the photo shows the other side of the car than the view given.
+    """The keypoints' names say the photo shows the car from its other side (or other end) than
+    the view given.
 
     Attributes:
-        mirror_azimuth: the mirror view's azimuth (360° − θ), which the marks fit.
+        azimuth: the view the marks fit: the mirror (360° − θ) or the other end (180° − θ).
     """
 
-    def __init__(self, message: str, mirror_azimuth: float):
+    def __init__(self, message: str, azimuth: float):
         super().__init__(message)
-        self.mirror_azimuth = mirror_azimuth
+        self.azimuth = azimuth
 
 
 class KeypointError(FitError):

@@ -37,8 +37,9 @@ class Reconstruction:
         name: the car (STEP product name).
         image: (h, w, 3) uint8 RGB photo.
         image_path: where the photo came from, if a file.
-        view_source: ``"given"``, ``"classifier"``, or the classifier's view mirrored when the
-            keypoints' names are of the other side (:class:`carbody.errors.SideError`).
+        view_source: ``"given"``, ``"classifier"``, or the classifier's view turned to the
+            car's other side or end when the keypoints' names say so
+            (:class:`carbody.errors.SideError`).
         view_prediction: the classifier's answer (:class:`carbody.view.predict.ViewPrediction`) or None.
         fit: the wireframe fit (:class:`carbody.fit.FitResult`).
         body: the surfaced body (:class:`carbody.surface.Body`).
@@ -324,8 +325,9 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     except SideError as exc:
         if source != "classifier":
             raise
-        # The classifier took the car's one side for the other; the marks' names tell which.
-        fit, source = fit_at(exc.mirror_azimuth), "classifier, mirrored: the keypoints are of the other side"
+        # The classifier took the car's one side (or end) for the other; the marks' names tell.
+        fit, source = fit_at(exc.azimuth), (f"classifier, turned to {exc.azimuth:g} deg: the keypoints' "
+                                            "names are of that view")
     timings["fit"] = time.perf_counter() - start
 
     start = stage("surfaces")

@@ -121,24 +121,33 @@ def test_a_close_camera_sees_less_of_the_faces_turned_away():
         visible_keypoints(View(60, 0, 0, 100.0, car_centre(mean)))
 
 
-def test_the_marks_names_tell_the_car_s_side(library):
-    """Every template's visible keypoints, at views 30° apart (level and from 10° up), fit
-    the view they were seen from; at the mirror view of a side view they are the other side's;
-    near the front and rear, and given 15° off, nothing is said."""
-    from carbody.fit.visibility import marks_other_side
+def test_the_marks_names_tell_the_car_s_side_and_end(library):
+    """Every template's visible keypoints, at views 30° apart (level and from 10° up), fit the
+    view they were seen from and one 15° off; at the mirror of a side view they say the other
+    side, every time; at the other end of a front or rear three-quarter view (150° for 30°)
+    they say the other end, mostly; and when they say something, it is the view they were seen
+    from."""
+    from carbody.fit.visibility import view_the_marks_say
 
     mean = library.S.mean(axis=1).reshape(-1, 3)
-    caught = 0
+    said = {"side": [0, 0], "end": [0, 0]}
     for t in range(len(library.template_names)):
         cp = library.points(library.original(t))
         for elevation in (0, 10):
             for azimuth in range(0, 360, 30):
                 names = visible_keypoints(View(azimuth, elevation), cp)
                 for given in (azimuth, azimuth - 15, azimuth + 15):
-                    assert marks_other_side(names, View(given % 360, elevation), mean) is None
-                if 30 <= azimuth % 180 <= 150:
-                    caught += marks_other_side(names, View(360 - azimuth, elevation), mean) is not None
-    assert caught == len(library.template_names) * 2 * 10  # every side view's mirror
+                    assert view_the_marks_say(names, View(given % 360, elevation), mean) is None
+                for what, other in (("side", 360 - azimuth), ("end", 180 - azimuth)):
+                    if (what == "side" and 30 <= azimuth % 180 <= 150) or \
+                            (what == "end" and min(azimuth % 180, 180 - azimuth % 180) <= 30):
+                        answer = view_the_marks_say(names, View(other % 360, elevation), mean)
+                        said[what][1] += 1
+                        if answer is not None:
+                            assert answer[:2] == (azimuth, what)
+                            said[what][0] += 1
+    assert said["side"][0] == said["side"][1]
+    assert said["end"][0] >= 0.6 * said["end"][1]
 
 
 def _swap(name):

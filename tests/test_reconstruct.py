@@ -195,17 +195,20 @@ def test_the_keypoints_names_correct_the_classifier_s_side(tmp_path):
     marks = _other_side(json.loads(KEYPOINTS.read_text())["keypoints"])
     rec = carbody.reconstruct(PHOTO, marks)
     report = rec.report(truth=read_wireframe(TRUTH))
-    assert "mirrored" in report["view"]["source"] and report["view"]["classifier"]["class_deg"] == 30
+    assert "turned to 330" in report["view"]["source"] and report["view"]["classifier"]["class_deg"] == 30
     assert abs(report["view"]["azimuth_deg"] - 330) < 5
     assert report["fit"]["error_mm_at_truth_wheelbase_mean"] < 20
     with pytest.raises(SideError, match="330") as caught:
         carbody.reconstruct(PHOTO, marks, view=30)
-    assert caught.value.mirror_azimuth == 330
+    assert caught.value.azimuth == 330
     (tmp_path / "k.json").write_text(json.dumps({"keypoints": marks}))
     proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(tmp_path / "k.json"), "--view", "30",
                        "-o", str(tmp_path / "out"))
     assert proc.returncode == 2 and len(lines) == 1 and "other side" in lines[0]
     assert not any((tmp_path / "out").iterdir())
+    # the example's own marks (a front three-quarter view) told the rear three-quarter view
+    proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(KEYPOINTS), "--view", "rear 30", "-o", str(tmp_path / "out"))
+    assert proc.returncode == 2 and len(lines) == 1 and "other end" in lines[0] and "30°" in lines[0]
 
 
 @pytest.mark.parametrize("command, refused", [

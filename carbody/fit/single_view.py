@@ -483,24 +483,26 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
 
 def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> None:
-    """Refuse a view from which many marks cannot be seen but from its mirror can: the photo
-    shows the car's other side (a classifier's left/right mistake, 30° given for 330°) or the
-    marks' left/right names are swapped. The refinement stays near the given view, so it could
-    only bend the car through itself to fit them.
+    """Refuse a view from which many marks cannot be seen but from its mirror, or from the car's
+    other end, can (:func:`carbody.fit.visibility.view_the_marks_say`): the photo shows the
+    car's other side (a classifier's left/right mistake, 30° given for 330°) or end (30° given
+    for 150°), or the marks' names are swapped. The refinement stays near the given view, so it
+    could only bend the car through itself to fit them.
 
     Raises:
-        SideError: naming the mirror view.
+        SideError: naming the view the marks say.
     """
-    from carbody.fit.visibility import marks_other_side
+    from carbody.fit.visibility import view_the_marks_say
 
-    other = marks_other_side([s.name for s in slots], view, library_mean(library).reshape(-1, 3))
-    if other is None:
+    said = view_the_marks_say([s.name for s in slots], view, library_mean(library).reshape(-1, 3))
+    if said is None:
         return
-    hidden, _ = other
-    mirror = (360.0 - view.azimuth) % 360.0
-    raise SideError(f"{len(hidden)} of the {len(slots)} keypoints ({', '.join(hidden[:3])}, …) are on a side of "
-                    f"the car a view of {view.azimuth:g}° cannot see, but one of {mirror:g}° can: the photo "
-                    f"shows the car's other side, or the marks' left/right names are swapped", mirror)
+    azimuth, what, hidden = said
+    cause = ("the car's other side, or the marks' left/right names are swapped" if what == "side" else
+             "the car's other end (front for rear), or the marks' front/rear names are swapped")
+    raise SideError(f"{len(hidden)} of the {len(slots)} keypoints ({', '.join(hidden[:3])}, …) cannot be seen "
+                    f"from a view of {view.azimuth:g}° but can from one of {azimuth:g}°: the photo shows "
+                    + cause, azimuth)
 
 
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
