@@ -120,8 +120,20 @@ def set_joint_field(joint: tuple[float, tuple | None, bool] | None,
             reference, topology, (deform.FIELD_SIGMA,) * 3, deform.FIELD_LENGTH)
 
 
+def misplace(kps: dict, size: tuple[int, int], n: int, px: float, rng: np.random.Generator) -> tuple[dict, list[str]]:
+    """``n`` random marks moved ``px`` pixels in a random direction (kept on the image): a
+    click on the wrong feature. Returns (the marks, the names moved)."""
+    names = list(rng.choice(sorted(kps), size=min(n, len(kps)), replace=False)) if n else []
+    out = dict(kps)
+    for name in names:
+        a = rng.uniform(0.0, 2.0 * np.pi)
+        u, v = np.array(out[name]) + px * np.array([np.cos(a), np.sin(a)])
+        out[name] = (float(np.clip(u, 0, size[0])), float(np.clip(v, 0, size[1])))
+    return out, names
+
+
 def run_template(args) -> list[dict]:
-    t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre = args
+    t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre, outliers, reject = args
     from carbody.errors import FitError
     from carbody.fit.single_view import fit_wireframe
     from carbody.topology import load_topology
@@ -132,6 +144,7 @@ def run_template(args) -> list[dict]:
     for azimuth in angles:
         distance = None if distance_mm is None else distance_mm * 1000.0 / wb  # normalised units
         kps, size, focal = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px, off_centre)
+        kps, moved = misplace(kps, size, *outliers, rng) if outliers else (kps, [])
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
         for method, lam, offset, refine, deform, *extra in cases + [("mixture", l, 0.0, False, True) for l in lambdas]:
@@ -149,7 +162,7 @@ def run_template(args) -> list[dict]:
             res = fit_wireframe(kps, View(azimuth + offset, given_elevation), loo, image_size=size,
                                 wheelbase_mm=wb if wb_told else None, method=method, refine=refine,
                                 deform=deform and method != "paper", principal_point=principal,
-                                focal_px=focal if known_focal else None,
+                                focal_px=focal if known_focal else None, reject_outliers=reject,
                                 **kw, **kw_camera)
             dt = time.perf_counter() - t0
             estimate = None
@@ -184,10 +197,33 @@ def run_template(args) -> list[dict]:
                          # the wheelbase the fit uses when none is given, vs the truth
                          "wheelbase_estimate_pct": estimate,
                          "residual_px": float(res.solution.residual_px.mean()),
+                         "moved": moved, "rejected": sorted(res.rejected_px),
                          # the fit's own estimate of each keypoint's error, against the error
                          "expected_mm": expected, "error_mm": err.tolist(),
                          "seconds": dt})
     return rows
+
+
+def rejections(rows: list[dict]) -> str:
+    """Marks the fits left out as misplaced, per case: how many fits left any out, how many marks,
+    and how many of those were the ones moved (``--outliers``)."""
+    lines = ["Marks left out as misplaced (fits that left any out; marks left out, of them moved by "
+             "--outliers; moved marks kept):", "",
+             "| case | fits | marks left out | of them moved | moved, kept |", "|---|---|---|---|---|"]
+    for label, group in _by_case(rows):
+        fits = sum(bool(r["rejected"]) for r in group)
+        marks = sum(len(r["rejected"]) for r in group)
+        right = sum(len(set(r["rejected"]) & set(r["moved"])) for r in group)
+        kept = sum(len(set(r["moved"]) - set(r["rejected"])) for r in group)
+        lines.append(f"| {label} | {fits} of {len(group)} | {marks} | {right} | {kept} |")
+    return "\n".join(lines)
+
+
+def _by_case(rows: list[dict]) -> list[tuple[str, list[dict]]]:
+    out: dict[str, list[dict]] = {}
+    for r in rows:
+        out.setdefault(case_label(r), []).append(r)
+    return list(out.items())
 
 
 def case_label(r: dict) -> str:
@@ -378,6 +414,11 @@ def main(argv=None) -> int:
     ap.add_argument("--broad-joint-field", action="store_true",
                     help="the deformation's broad part (FIELD_SIGMA, FIELD_LENGTH) inside the "
                          "shape prior instead of its local one, at --joint-field's amplitude")
+    ap.add_argument("--outliers", metavar="N,PX",
+                    help="move N random marks of each view PX pixels in a random direction (a click "
+                         "on the wrong feature)")
+    ap.add_argument("--no-reject", action="store_true",
+                    help="keep every mark (fit_wireframe's reject_outliers=False)")
     ap.add_argument("--deform-length", metavar="LX,LY,LZ",
                     help="correlation lengths across, along the car and up (normalised units) of "
                          "the local part of the deformation after the fit (default LOCAL_LENGTH in "
@@ -386,6 +427,13 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
+    outliers = None
+    if args.outliers:
+        try:
+            n, px = args.outliers.split(",")
+            outliers = (int(n), float(px))
+        except ValueError:
+            ap.error("--outliers takes N,PX (e.g. 1,40)")
     deform_length = None
     if args.deform_length:
         deform_length = tuple(float(v) for v in args.deform_length.split(","))
@@ -449,7 +497,8 @@ def main(argv=None) -> int:
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=set_joint_field, initargs=(joint, deform_length)) as pool:
-        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance, args.noise, args.off_centre)
+        rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance,
+                                                          args.noise, args.off_centre, outliers, not args.no_reject)
                                                          for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
           f"elevation {args.elevation:g}°, "
@@ -457,9 +506,12 @@ def main(argv=None) -> int:
           f"{f', its axis {args.off_centre:g}° off the car' if args.off_centre else ''}, {args.noise:g} px noise on a {IMAGE_WIDTH} px wide image"
           f"{'' if joint is None else f', joint field {args.joint_field or joint[0]}'}"
           f"{' (the broad part)' if args.broad_joint_field else ''}"
-          f"{f', deformation lengths {args.deform_length}' if deform_length else ''} "
+          f"{f', deformation lengths {args.deform_length}' if deform_length else ''}"
+          f"{f', {outliers[0]} mark(s) a view moved {outliers[1]:g} px' if outliers else ''}"
+          f"{', every mark kept' if args.no_reject else ''} "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))
+    print("\n" + rejections(rows))
     found = [r for r in rows if r.get("camera") == "auto" and not r.get("focal_known")
              and args.distance is not None]
     if found:

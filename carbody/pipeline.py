@@ -131,6 +131,10 @@ class Reconstruction:
             from carbody.fit.report import expected_error_line
 
             lines.append(expected_error_line(fit["expected_error_mm"]))
+        if fit["rejected_keypoints"]:
+            lines.append("left out as misplaced (check them): "
+                         + ", ".join(f"{n} ({px:.0f} px from the car the other marks give)"
+                                     for n, px in fit["rejected_keypoints"].items()))
         if fit["suspect_keypoints"]:
             lines.append("the fitted car passes far from these marks (check them): "
                          + ", ".join(f"{n} ({fit['residual_px'][n]:.0f} px)" for n in fit["suspect_keypoints"]))

@@ -120,6 +120,26 @@ def test_a_phone_photo_stored_on_its_side_is_read_upright(photo, tmp_path):
     assert runs["car.jpg"]["keypoints_mm"] == runs["car.png"]["keypoints_mm"]
 
 
+def test_a_misplaced_mark_is_left_out_and_named(photo, tmp_path):
+    """One mark clicked 60 px off: the command says it left it out, the report lists it, and the
+    overlay crosses it out (magenta) where it was clicked."""
+    from carbody.view.predict import read_image
+
+    marks = json.loads((photo / "car.json").read_text())
+    u, v = marks["keypoints"]["b_pillar_top"]
+    marks["keypoints"]["b_pillar_top"] = [u, v + 60.0]
+    (tmp_path / "car.json").write_text(json.dumps(marks))
+    proc = run_cli("fit", str(photo / "car.png"), "--keypoints", str(tmp_path / "car.json"), "--view", "30",
+                   "--exclude-template", "Volvo V60", "-o", str(tmp_path / "car.step"),
+                   "--overlay", str(tmp_path / "ov.png"), "--report", str(tmp_path / "r.json"), check=True)
+    assert "left out as misplaced: b_pillar_top" in proc.stdout
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert list(report["rejected_keypoints"]) == ["b_pillar_top"] and "b_pillar_top" not in report["residual_px"]
+    overlay = read_image(tmp_path / "ov.png")
+    near = overlay[round(v + 60) - 6:round(v + 60) + 7, round(u) - 6:round(u) + 7].reshape(-1, 3).astype(int)
+    assert np.any((near[:, 0] > 200) & (near[:, 1] < 80) & (near[:, 2] > 200))  # magenta (RGB)
+
+
 def test_visible_keypoints_command():
     proc = run_cli("visible-keypoints", "--view", "90", check=True)
     assert "rear_arch_top" in proc.stdout and "_right" not in proc.stdout

@@ -1,4 +1,5 @@
 """The weight solve, the view refinement and leave-one-out accuracy (paper III.D–E)."""
+import json
 import numpy as np
 import pytest
 
@@ -174,21 +175,25 @@ def test_a_focal_length_that_puts_the_camera_in_the_car_is_dropped(library):
 
 
 def test_misplaced_or_swapped_marks_are_named(library):
-    """A mark 50 px off, or two names swapped left for right, stand out of the residuals; a clean
-    set of marks on a left-out car has no suspect."""
+    """A mark 50 px off, or two names swapped left for right, stand out of the residuals (every
+    mark kept) and are left out (by default); a clean set of marks on a left-out car has no
+    suspect and loses none."""
     t, loo, truth = _left_out(library, "Toyota Camry XV70")
     slots, uv = _observe(truth, View(30, 10), scale=0.5, noise=1.0, seed=5)
     marks = {s.name: p for s, p in zip(slots, uv)}
 
     def suspects(m):
-        return fit_wireframe(m, View(30, 10), loo, refine=False).suspect_keypoints()
+        return fit_wireframe(m, View(30, 10), loo, refine=False, reject_outliers=False).suspect_keypoints()
 
-    assert suspects(marks) == []
+    def left_out(m):
+        return set(fit_wireframe(m, View(30, 10), loo, refine=False).rejected_px)
+
+    assert suspects(marks) == [] and left_out(marks) == set()
     moved = dict(marks, window_front_top=marks["window_front_top"] + [40.0, -30.0])
-    assert suspects(moved)[0] == "window_front_top"
+    assert suspects(moved)[0] == "window_front_top" and left_out(moved) == {"window_front_top"}
     a, b = "front_top_corner", "front_top_corner_right"
     swapped = dict(marks, **{a: marks[b], b: marks[a]})
-    assert {a, b} <= set(suspects(swapped)[:4])
+    assert {a, b} <= set(suspects(swapped)[:4]) and left_out(swapped) == {a, b}
 
 
 def test_refinement_wins_back_a_wrong_angle(library, topology):
@@ -517,3 +522,31 @@ def test_a_distant_camera_found_is_called_orthographic(library, template):
     found = fit_wireframe({s.name: tuple(p) for s, p in zip(slots, uv)}, View(30, 10), loo,
                           camera_distance_mm="auto")
     assert found.camera_distance_mm is None or found.camera_distance_mm < 3e6
+
+
+def test_a_misplaced_mark_is_left_out(library):
+    """One mark clicked 60 px off (on a 1000 px photo) bends the car the others give by tens of
+    mm; the fit tests its largest residual against the car fitted without it, leaves it out,
+    names it, and fits as well as without the slip. Clean marks lose nothing."""
+    from carbody.fit.report import build_report
+    from carbody.wireframe import read_wireframe
+    from tests.conftest import REPO
+
+    example = json.loads((REPO / "examples" / "car_keypoints.json").read_text())
+    truth = read_wireframe(REPO / "examples" / "car_truth.step")
+    marks = dict(example["keypoints"])
+    u, v = marks["nose_centre"]
+    slipped = {**marks, "nose_centre": [u, v + 60.0]}
+
+    def error(keypoints, reject=True):
+        fit = fit_wireframe(keypoints, View(30, 5), library, image_size=tuple(example["image_size"]),
+                            camera_distance_mm="auto", reject_outliers=reject)
+        return build_report(fit, truth)["error_mm_at_truth_wheelbase_mean"], fit
+
+    clean, clean_fit = error(marks)
+    kept, _ = error(slipped, reject=False)
+    left, fit = error(slipped)
+    assert not clean_fit.rejected_px
+    assert list(fit.rejected_px) == ["nose_centre"] and fit.rejected_px["nose_centre"] > 40
+    assert "nose_centre" not in {s.name for s in fit.slots} and fit.rejected_uv["nose_centre"][1] == v + 60
+    assert kept > clean + 10 and left < clean + 3

@@ -175,6 +175,10 @@ def run_fit(args: argparse.Namespace) -> int:
     expected = result.expected_error_mm() if report is None else report.get("expected_error_mm")
     if expected is not None:
         print(expected_error_line(expected))
+    if result.rejected_px:
+        print("note: left out as misplaced: " + ", ".join(
+            f"{n} ({px:.0f} px from the car the other marks give)" for n, px in result.rejected_px.items())
+              + ": check those marks (place, left/right name)")
     suspects = result.suspect_keypoints()
     if suspects:
         res = result.residuals_px()

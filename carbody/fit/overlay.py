@@ -1,6 +1,8 @@
 """The overlay picture (paper Fig. 9–10): photo, annotated (red) and reprojected (green)
 keypoints, and the fitted wireframe projected with the refined camera; marks the fit cannot
-follow (:meth:`~carbody.fit.single_view.FitResult.suspect_keypoints`) ringed in magenta."""
+follow (:meth:`~carbody.fit.single_view.FitResult.suspect_keypoints`) ringed in magenta, and
+marks left out as misplaced (``FitResult.rejected_uv``) crossed out in magenta, joined to where
+the fitted car puts them."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -20,8 +22,8 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
     """
     import cv2
 
-    from carbody.wireframe import sample_curves
-    from carbody.wireframe import MIRROR
+    from carbody.fit.keypoints_io import keypoint_slots
+    from carbody.wireframe import MIRROR, sample_curves
 
     out = image.copy()
     thick = max(1, round(max(out.shape[:2]) / 800))
@@ -44,6 +46,19 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
             cv2.putText(out, str(slot.keypoint_id) + ("'" if slot.is_mirror else ""),
                         (round(u) + r + 1, round(v) - r - 1), cv2.FONT_HERSHEY_SIMPLEX,
                         0.35 * thick, (0, 0, 200), thick, cv2.LINE_AA)
+    slots = keypoint_slots()
+    for name, (u, v) in result.rejected_uv.items():
+        slot = slots[name]
+        pu, pv = result.project_points(cp[slot.point_index] * slot.sign)
+        cv2.line(out, (round(u), round(v)), (round(pu), round(pv)), (255, 0, 255), thick, cv2.LINE_AA)
+        cv2.circle(out, (round(pu), round(pv)), r, (0, 200, 0), thick, cv2.LINE_AA)
+        for du in (-1, 1):
+            cv2.line(out, (round(u - 2 * r), round(v - 2 * r * du)), (round(u + 2 * r), round(v + 2 * r * du)),
+                     (255, 0, 255), 2 * thick, cv2.LINE_AA)
+        if labels:
+            cv2.putText(out, str(slot.keypoint_id) + ("'" if slot.is_mirror else ""),
+                        (round(u) + 2 * r + 1, round(v) - 2 * r - 1), cv2.FONT_HERSHEY_SIMPLEX,
+                        0.35 * thick, (255, 0, 255), thick, cv2.LINE_AA)
     return out
 
 

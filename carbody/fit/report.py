@@ -64,6 +64,8 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "visible_at_refined_view": visible,
         "annotated_but_hidden": [s.name for s in result.slots if s.name not in visible],
         "suspect_keypoints": result.suspect_keypoints(),
+        # marks left out as misplaced: {name: px the fitted car passes from it}
+        "rejected_keypoints": dict(result.rejected_px),
         "deformation_mm_max": result.deformation_mm,
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),

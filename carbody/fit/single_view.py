@@ -234,6 +234,10 @@ class FitResult:
         wheelbase_from: where ``wheelbase_mm`` came from: ``"told"``, ``"camera distance"``
             (a told distance against the perspective's) or ``"library mix"`` (the fitted mix
             of the templates' own wheelbases).
+        rejected_px: marks left out as misplaced ({name: how far the fitted car passes from
+            it, px}); not in ``slots``. ``rejected_uv``: their pixels.
+        solve_residual_px: (k,) the marks' residuals before the deformation (None: no
+            deformation, see ``solution.residual_px``).
     """
 
     wireframe: Wireframe
@@ -250,6 +254,9 @@ class FitResult:
     focal_px: float | None = None
     camera_turn_deg: float = 0.0
     wheelbase_from: str = "library mix"
+    rejected_px: dict[str, float] = field(default_factory=dict)
+    rejected_uv: dict[str, tuple[float, float]] = field(default_factory=dict)
+    solve_residual_px: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def mm_per_unit(self) -> float:
@@ -364,7 +371,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                   prior_weight: float = DEFAULT_PRIOR_WEIGHT, refine: bool = True,
                   deform: bool | None = None, camera_distance_mm: float | str | None = None,
                   principal_point: str | tuple[float, float] = "auto", focal_px: float | None = None,
-                  name: str = "fitted car") -> FitResult:
+                  reject_outliers: bool = True, name: str = "fitted car") -> FitResult:
     """Fit the car's 3D wireframe to keypoints marked on one photo.
 
     Args:
@@ -408,6 +415,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         focal_px: the camera's focal length in pixels, if known (a photo's 35 mm-equivalent
             focal length × its diagonal in pixels / 43.3 mm, :mod:`carbody.fit.focal`): the
             turn toward an off-centre car then uses it, with no search.
+        reject_outliers: leave out up to ``MAX_OUTLIERS`` marks the rest of the car says are
+            misplaced (:func:`_outliers`; Gaussian-prior methods): they are named in
+            ``FitResult.rejected_px``.
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -434,11 +444,104 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     principal = _principal_point(principal_point, image_size, focal_px)
     if focal_px is not None and not (np.isfinite(focal_px) and focal_px > 0):
         raise FitError(f"focal length {focal_px!r} px is not a positive number")
+    deform = (method != "paper") if deform is None else deform
+    marks = dict(view=view, library=library, method=method, prior_weight=prior_weight, refine=refine,
+                 camera_distance_mm=camera_distance_mm, wheelbase_mm=wheelbase_mm, name=name,
+                 principal=principal, focal_px=focal_px, deform=deform)
+    result = _fit_marks(slots, uv, **marks)
+    if not reject_outliers or method == "paper":
+        return result
+    rejected = _outliers(result, prior_weight)
+    if not rejected:
+        return result
+    keep = [i for i, s in enumerate(slots) if s.name not in rejected]
+    result = _fit_marks([slots[i] for i in keep], uv[keep], **marks)
+    result.rejected_px = {n: float(e) for n, e in zip(rejected, _distances_to_marks(result, rejected, slots, uv))}
+    result.rejected_uv = {s.name: (float(p[0]), float(p[1])) for s, p in zip(slots, uv) if s.name in rejected}
+    return result
+
+
+#: A mark is tested as misplaced when its residual before the deformation exceeds this many
+#: times the median …
+OUTLIER_CANDIDATE_RATIO = 4.0
+
+#: … and left out when the car fitted without it passes further from it than this many standard
+#: deviations of where that fit expects it (the keypoint's posterior spread seen in the photo,
+#: and the marks' noise, ``KEYPOINT_NOISE``) …
+OUTLIER_SIGMAS = 5.0
+
+#: … and further than this fraction of the marks' RMS spread (≈ 9 px for a car 900 px wide).
+OUTLIER_SPREAD = 0.03
+
+#: At most this many marks are left out.
+MAX_OUTLIERS = 2
+
+
+def _outliers(result: FitResult, prior_weight: float) -> list[str]:
+    """Names of marks the rest of the car says are misplaced, worst first.
+
+    A misplaced mark (a click on the wrong feature, two names swapped) bends the fitted car
+    toward it, so its residual after the fit understates it. Each candidate (the largest
+    residual before the deformation, ``OUTLIER_CANDIDATE_RATIO``) is tested against the car
+    fitted without it at the same camera: how many of that fit's standard deviations it lies
+    from where that fit puts its keypoint (``OUTLIER_SIGMAS``, ``OUTLIER_SPREAD``). A mark
+    the other marks predict, however far from the library, stays.
+    """
+    from carbody.fit.deform import KEYPOINT_NOISE
+    from carbody.fit.keypoints_io import MIN_KEYPOINTS
+
+    slots = list(result.slots)
+    uv = result.uv if result.to_photo is None else apply_homography(np.linalg.inv(result.to_photo), result.uv)
+    residual = result.solve_residual_px if result.solve_residual_px is not None else result.solution.residual_px
+    residual = np.asarray(residual, dtype=float)
+    spread = float(np.sqrt(np.mean(np.sum((uv - uv.mean(axis=0)) ** 2, axis=1))))
+    told = result.wheelbase_mm if result.wheelbase_from == "told" else None
+    rejected: list[str] = []
+    while len(rejected) < MAX_OUTLIERS and len(slots) > MIN_KEYPOINTS:
+        i = int(np.argmax(residual))
+        if not residual[i] > OUTLIER_CANDIDATE_RATIO * float(np.median(residual)):
+            break
+        keep = [j for j in range(len(slots)) if j != i]
+        without = _fit_checked([slots[j] for j in keep], uv[keep], view=result.view, library=result.library,
+                               method=result.method, prior_weight=prior_weight, refine=False,
+                               camera_distance_mm=None if result.view.distance is None else "kept",
+                               wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name)
+        sol, slot = without.solution, slots[i]
+        point = sol.shape.reshape(-1, 3)[slot.point_index] * slot.sign
+        miss = uv[i] - project(point, without.view, sol.scale, sol.offset)
+        jac = np.stack([project(point + d, without.view, sol.scale, sol.offset)
+                        - project(point - d, without.view, sol.scale, sol.offset) for d in np.eye(3)], axis=1) / 2.0
+        cov = keypoint_covariance(sol.posterior)[slot.keypoint_id - 1] * np.outer(slot.sign, slot.sign)
+        seen = jac @ cov @ jac.T + (KEYPOINT_NOISE * sol.scale) ** 2 * np.eye(2)
+        sigmas = float(np.sqrt(miss @ np.linalg.solve(seen, miss)))
+        if sigmas <= OUTLIER_SIGMAS or np.linalg.norm(miss) <= OUTLIER_SPREAD * spread:
+            break
+        rejected.append(slot.name)
+        slots, uv, residual = [slots[j] for j in keep], uv[keep], np.asarray(sol.residual_px, dtype=float)
+    return rejected
+
+
+def _distances_to_marks(result: FitResult, names: list[str], slots: list[KeypointSlot],
+                        uv: np.ndarray) -> list[float]:
+    """How far (px) the fitted car passes from each named mark of ``slots`` / ``uv``."""
+    by_name = {s.name: (s, p) for s, p in zip(slots, uv)}
+    out = []
+    for n in names:
+        slot, mark = by_name[n]
+        point = result.wireframe.control_points[slot.point_index] * slot.sign
+        out.append(float(np.linalg.norm(result.project_points(point) - mark)))
+    return out
+
+
+def _fit_marks(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
+               prior_weight: float, refine: bool, camera_distance_mm, wheelbase_mm: float | None,
+               name: str, principal: np.ndarray | None, focal_px: float | None, deform: bool) -> FitResult:
+    """:func:`fit_wireframe` on checked marks: the solve, the view, the camera (its distance,
+    its turn toward an off-centre car), the wheelbase, and the deformation."""
     # Passes that may be refitted skip the deformation; the fit kept gets it (_deformed) at the end.
     fit = dict(slots=slots, uv=uv, view=view, library=library, method=method,
                prior_weight=prior_weight, refine=refine, camera_distance_mm=camera_distance_mm,
                wheelbase_mm=wheelbase_mm, name=name)
-    deform = (method != "paper") if deform is None else deform
     by_distance = None  # the wheelbase a told distance and the perspective give
     if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
         result = _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
@@ -587,6 +690,7 @@ def _deformed(result: FitResult) -> FitResult:
     sol.shape = prepared_field(result.library).fit_to_keypoints(before, idx, result.slots, uv,
                                                                 result.view, sol.scale, sol.offset)
     moved = float(np.max(np.linalg.norm((sol.shape - before).reshape(-1, 3), axis=1)))
+    result.solve_residual_px = np.array(sol.residual_px, dtype=float)
     result.wireframe = Wireframe(result.wireframe.name, sol.shape.reshape(-1, 3) * result.mm_per_unit)
     result.deformation_mm = moved * result.mm_per_unit
     sol.residual_px = np.linalg.norm(result.reprojected() - result.uv, axis=1)
