@@ -132,8 +132,19 @@ def misplace(kps: dict, size: tuple[int, int], n: int, px: float, rng: np.random
     return out, names
 
 
+def swap_pair(kps: dict, rng: np.random.Generator) -> tuple[dict, list[str]]:
+    """One random left/right pair of marks (both marked) with their names exchanged: the car's
+    left taken for the viewer's. Returns (the marks, the two names; none when no pair is)."""
+    pairs = sorted(n for n in kps if n + "_right" in kps)
+    if not pairs:
+        return kps, []
+    a = str(rng.choice(pairs))
+    b = a + "_right"
+    return {**kps, a: kps[b], b: kps[a]}, [a, b]
+
+
 def run_template(args) -> list[dict]:
-    t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre, outliers, reject = args
+    t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre, outliers, reject, swap = args
     from carbody.errors import FitError
     from carbody.fit.single_view import fit_wireframe
     from carbody.topology import load_topology
@@ -145,6 +156,8 @@ def run_template(args) -> list[dict]:
         distance = None if distance_mm is None else distance_mm * 1000.0 / wb  # normalised units
         kps, size, focal = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px, off_centre)
         kps, moved = misplace(kps, size, *outliers, rng) if outliers else (kps, [])
+        if swap:
+            kps, moved = swap_pair(kps, rng)
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
         for method, lam, offset, refine, deform, *extra in cases + [("mixture", l, 0.0, False, True) for l in lambdas]:
@@ -198,6 +211,7 @@ def run_template(args) -> list[dict]:
                          "wheelbase_estimate_pct": estimate,
                          "residual_px": float(res.solution.residual_px.mean()),
                          "moved": moved, "rejected": sorted(res.rejected_px),
+                         "swapped": sorted(res.swapped_names or ()),
                          # the fit's own estimate of each keypoint's error, against the error
                          "expected_mm": expected, "error_mm": err.tolist(),
                          "seconds": dt})
@@ -208,14 +222,16 @@ def rejections(rows: list[dict]) -> str:
     """Marks the fits left out as misplaced, per case: how many fits left any out, how many marks,
     and how many of those were the ones moved (``--outliers``)."""
     lines = ["Marks left out as misplaced (fits that left any out; marks left out, of them moved by "
-             "--outliers; moved marks kept):", "",
-             "| case | fits | marks left out | of them moved | moved, kept |", "|---|---|---|---|---|"]
+             "--outliers or swapped by --swap-pair; moved marks kept; pairs the fit exchanged back):", "",
+             "| case | fits | marks left out | of them moved | moved, kept | pairs exchanged back |",
+             "|---|---|---|---|---|---|"]
     for label, group in _by_case(rows):
         fits = sum(bool(r["rejected"]) for r in group)
         marks = sum(len(r["rejected"]) for r in group)
         right = sum(len(set(r["rejected"]) & set(r["moved"])) for r in group)
-        kept = sum(len(set(r["moved"]) - set(r["rejected"])) for r in group)
-        lines.append(f"| {label} | {fits} of {len(group)} | {marks} | {right} | {kept} |")
+        kept = sum(len(set(r["moved"]) - set(r["rejected"]) - set(r["swapped"])) for r in group)
+        back = sum(bool(r["swapped"]) and set(r["swapped"]) == set(r["moved"]) for r in group)
+        lines.append(f"| {label} | {fits} of {len(group)} | {marks} | {right} | {kept} | {back} |")
     return "\n".join(lines)
 
 
@@ -417,6 +433,9 @@ def main(argv=None) -> int:
     ap.add_argument("--outliers", metavar="N,PX",
                     help="move N random marks of each view PX pixels in a random direction (a click "
                          "on the wrong feature)")
+    ap.add_argument("--swap-pair", action="store_true",
+                    help="exchange the names of one random left/right pair of marks a view (the car's "
+                         "left taken for the viewer's)")
     ap.add_argument("--no-reject", action="store_true",
                     help="keep every mark (fit_wireframe's reject_outliers=False)")
     ap.add_argument("--deform-length", metavar="LX,LY,LZ",
@@ -498,7 +517,8 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=set_joint_field, initargs=(joint, deform_length)) as pool:
         rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance,
-                                                          args.noise, args.off_centre, outliers, not args.no_reject)
+                                                          args.noise, args.off_centre, outliers, not args.no_reject,
+                                                          args.swap_pair)
                                                          for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
           f"elevation {args.elevation:g}°, "
@@ -508,6 +528,7 @@ def main(argv=None) -> int:
           f"{' (the broad part)' if args.broad_joint_field else ''}"
           f"{f', deformation lengths {args.deform_length}' if deform_length else ''}"
           f"{f', {outliers[0]} mark(s) a view moved {outliers[1]:g} px' if outliers else ''}"
+          f"{', one left/right pair of names exchanged' if args.swap_pair else ''}"
           f"{', every mark kept' if args.no_reject else ''} "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))

@@ -127,14 +127,11 @@ class Reconstruction:
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({fit['wheelbase_from']})",
         ]
-        if "expected_error_mm" in fit:
-            from carbody.fit.report import expected_error_line
+        from carbody.fit.report import expected_error_line, marks_notes
 
+        if "expected_error_mm" in fit:
             lines.append(expected_error_line(fit["expected_error_mm"]))
-        if fit["rejected_keypoints"]:
-            lines.append("left out as misplaced (check them): "
-                         + ", ".join(f"{n} ({px:.0f} px from the car the other marks give)"
-                                     for n, px in fit["rejected_keypoints"].items()))
+        lines += marks_notes(fit["rejected_keypoints"], fit["rejected_looks_like"], fit["swapped_keypoints"])
         if fit["suspect_keypoints"]:
             lines.append("the fitted car passes far from these marks (check them): "
                          + ", ".join(f"{n} ({fit['residual_px'][n]:.0f} px)" for n in fit["suspect_keypoints"]))

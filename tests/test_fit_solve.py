@@ -176,8 +176,8 @@ def test_a_focal_length_that_puts_the_camera_in_the_car_is_dropped(library):
 
 def test_misplaced_or_swapped_marks_are_named(library):
     """A mark 50 px off, or two names swapped left for right, stand out of the residuals (every
-    mark kept) and are left out (by default); a clean set of marks on a left-out car has no
-    suspect and loses none."""
+    mark kept); by default the first is left out and the pair is fitted with its names exchanged
+    back; a clean set of marks on a left-out car has no suspect and loses none."""
     t, loo, truth = _left_out(library, "Toyota Camry XV70")
     slots, uv = _observe(truth, View(30, 10), scale=0.5, noise=1.0, seed=5)
     marks = {s.name: p for s, p in zip(slots, uv)}
@@ -188,12 +188,16 @@ def test_misplaced_or_swapped_marks_are_named(library):
     def left_out(m):
         return set(fit_wireframe(m, View(30, 10), loo, refine=False).rejected_px)
 
+    def exchanged(m):
+        return fit_wireframe(m, View(30, 10), loo, refine=False).swapped_names
+
     assert suspects(marks) == [] and left_out(marks) == set()
     moved = dict(marks, window_front_top=marks["window_front_top"] + [40.0, -30.0])
     assert suspects(moved)[0] == "window_front_top" and left_out(moved) == {"window_front_top"}
     a, b = "front_top_corner", "front_top_corner_right"
     swapped = dict(marks, **{a: marks[b], b: marks[a]})
-    assert {a, b} <= set(suspects(swapped)[:4]) and left_out(swapped) == {a, b}
+    assert {a, b} <= set(suspects(swapped)[:4]) and left_out(swapped) == set() and exchanged(swapped) == (a, b)
+    assert exchanged(marks) is None
 
 
 def test_refinement_wins_back_a_wrong_angle(library, topology):
@@ -550,3 +554,7 @@ def test_a_misplaced_mark_is_left_out(library):
     assert list(fit.rejected_px) == ["nose_centre"] and fit.rejected_px["nose_centre"] > 40
     assert "nose_centre" not in {s.name for s in fit.slots} and fit.rejected_uv["nose_centre"][1] == v + 60
     assert kept > clean + 10 and left < clean + 3
+    # clicked on the windscreen's foot instead: left out, and said what it looks like
+    misnamed = {**marks, "nose_centre": [marks["cowl_centre"][0] + 1.0, marks["cowl_centre"][1]]}
+    left, fit = error(misnamed)
+    assert fit.rejected_looks_like == {"nose_centre": "cowl_centre"} and left < clean + 3

@@ -109,7 +109,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.camera import View, read_view
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
-    from carbody.fit.report import build_report, draw_error_chart, expected_error_line, write_json
+    from carbody.fit.report import build_report, draw_error_chart, expected_error_line, marks_notes, write_json
     from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
@@ -175,10 +175,8 @@ def run_fit(args: argparse.Namespace) -> int:
     expected = result.expected_error_mm() if report is None else report.get("expected_error_mm")
     if expected is not None:
         print(expected_error_line(expected))
-    if result.rejected_px:
-        print("note: left out as misplaced: " + ", ".join(
-            f"{n} ({px:.0f} px from the car the other marks give)" for n, px in result.rejected_px.items())
-              + ": check those marks (place, left/right name)")
+    for line in marks_notes(result.rejected_px, result.rejected_looks_like, result.swapped_names):
+        print("note: " + line)
     suspects = result.suspect_keypoints()
     if suspects:
         res = result.residuals_px()

@@ -64,8 +64,12 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "visible_at_refined_view": visible,
         "annotated_but_hidden": [s.name for s in result.slots if s.name not in visible],
         "suspect_keypoints": result.suspect_keypoints(),
-        # marks left out as misplaced: {name: px the fitted car passes from it}
+        # marks left out as misplaced: {name: px the fitted car passes from it}, and the
+        # keypoint the car puts where one was clicked, when one is near
         "rejected_keypoints": dict(result.rejected_px),
+        "rejected_looks_like": dict(result.rejected_looks_like),
+        # a left/right pair fitted with its names exchanged, or None
+        "swapped_keypoints": None if result.swapped_names is None else list(result.swapped_names),
         "deformation_mm_max": result.deformation_mm,
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
@@ -93,6 +97,21 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         report["error_mm_at_truth_wheelbase_mean"] = float(np.mean(list(shape_err.values())))
         report["error_mm_at_truth_wheelbase_max"] = float(np.max(list(shape_err.values())))
     return report
+
+
+def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], swapped) -> list[str]:
+    """Lines for a person about marks the fit left out or renamed (the report's
+    ``rejected_keypoints``, ``rejected_looks_like``, ``swapped_keypoints``)."""
+    lines = []
+    if swapped:
+        lines.append(f"{swapped[0]} and {swapped[1]} fit with their names exchanged (the car's left is "
+                     "the viewer's right seen from the front): fitted so")
+    if rejected_px:
+        lines.append("left out as misplaced: " + ", ".join(
+            f"{n} ({px:.0f} px from the car the other marks give"
+            + (f"; where it puts {looks_like[n]}" if n in looks_like else "") + ")"
+            for n, px in rejected_px.items()) + ": check those marks")
+    return lines
 
 
 def expected_error_line(expected_mm: dict[str, float]) -> str:

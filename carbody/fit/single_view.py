@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from carbody.errors import AngleError, FitError, SideError
-from carbody.camera import View, apply_homography, look_at_homography, project
+from carbody.camera import View, apply_homography, look_at_homography, perspective_factors, project
 from carbody.fit.deform import DeformationField, joint_field_basis
-from carbody.fit.keypoints_io import KeypointSlot, check_keypoints
+from carbody.fit.keypoints_io import KeypointSlot, check_keypoints, keypoint_slots
 from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERATIONS, KeypointBasis,
                                MixSolution, ShapeModel, car_centre, keypoint_covariance, keypoint_spread,
@@ -23,7 +23,7 @@ from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERAT
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
-from carbody.wireframe import Wireframe
+from carbody.wireframe import MIRROR, RIGHT_SUFFIX, Wireframe
 
 #: Library preparations kept per process (keypoint rows, shape models), keyed by the S array.
 _PREPARED: dict[tuple, object] = {}
@@ -235,7 +235,10 @@ class FitResult:
             (a told distance against the perspective's) or ``"library mix"`` (the fitted mix
             of the templates' own wheelbases).
         rejected_px: marks left out as misplaced ({name: how far the fitted car passes from
-            it, px}); not in ``slots``. ``rejected_uv``: their pixels.
+            it, px}); not in ``slots``. ``rejected_uv``: their pixels; ``rejected_looks_like``:
+            {mark: the keypoint the fitted car puts where it was clicked}, when one is near.
+        swapped_names: a left/right pair of marks fitted with their names exchanged (both
+            misplaced as named, both fitting swapped), or None.
         solve_residual_px: (k,) the marks' residuals before the deformation (None: no
             deformation, see ``solution.residual_px``).
     """
@@ -256,6 +259,8 @@ class FitResult:
     wheelbase_from: str = "library mix"
     rejected_px: dict[str, float] = field(default_factory=dict)
     rejected_uv: dict[str, tuple[float, float]] = field(default_factory=dict)
+    rejected_looks_like: dict[str, str] = field(default_factory=dict)
+    swapped_names: tuple[str, str] | None = None
     solve_residual_px: np.ndarray | None = field(default=None, repr=False)
 
     @property
@@ -451,14 +456,90 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     result = _fit_marks(slots, uv, **marks)
     if not reject_outliers or method == "paper":
         return result
-    rejected = _outliers(result, prior_weight)
-    if not rejected:
-        return result
-    keep = [i for i, s in enumerate(slots) if s.name not in rejected]
-    result = _fit_marks([slots[i] for i in keep], uv[keep], **marks)
-    result.rejected_px = {n: float(e) for n, e in zip(rejected, _distances_to_marks(result, rejected, slots, uv))}
-    result.rejected_uv = {s.name: (float(p[0]), float(p[1])) for s, p in zip(slots, uv) if s.name in rejected}
+    rejected, swapped = _outliers(result, prior_weight), None
+    # A mark left out, or standing out, whose left/right twin is marked too: do the two fit with
+    # their names exchanged (the car's left is the viewer's right on a front view)? (A pair
+    # swapped on a front or rear view bends the whole car, so its marks may not be the ones left
+    # out.) Kept when the pair then fits and the marks' median residual falls by SWAP_GAIN.
+    before = float(np.median(_solve_residual(result)))
+    best = None
+    for pair in _twin_pairs(rejected + _candidates(result), slots)[:MAX_SWAP_TRIALS]:
+        renamed = _swap_names(slots, pair)
+        try:
+            trial = _fit_marks(renamed, uv, **marks)
+            again = _outliers(trial, prior_weight)
+        except (FitError, AngleError):  # no car fits them so either
+            continue
+        after = float(np.median(_solve_residual(trial)))
+        if not set(pair) & set(again) and after < SWAP_GAIN * before and (best is None or after < best[0]):
+            best = (after, renamed, trial, again, pair)
+    if best is not None:
+        _, slots, result, rejected, swapped = best
+    if rejected:
+        keep = [i for i, s in enumerate(slots) if s.name not in rejected]
+        result = _fit_marks([slots[i] for i in keep], uv[keep], **marks)
+        result.rejected_px = {n: float(e) for n, e in zip(rejected, _distances_to_marks(result, rejected, slots, uv))}
+        result.rejected_uv = {s.name: (float(p[0]), float(p[1])) for s, p in zip(slots, uv) if s.name in rejected}
+        result.rejected_looks_like = _looks_like(result, result.rejected_uv)
+    result.swapped_names = swapped
     return result
+
+
+#: Left/right pairs of marks tried with their names exchanged, at most …
+MAX_SWAP_TRIALS = 3
+
+#: … and one is kept when the marks' median residual before the deformation falls below this
+#: fraction of what it was.
+SWAP_GAIN = 0.5
+
+
+def _twin_pairs(names: list[str], slots: list[KeypointSlot]) -> list[tuple[str, str]]:
+    """(left name, right name) of each of ``names`` whose mirror twin (``x`` / ``x_right``) is
+    marked too, in order, once each."""
+    marked = {s.name for s in slots}
+    pairs = []
+    for n in names:
+        left = n.removesuffix(RIGHT_SUFFIX)
+        pair = (left, left + RIGHT_SUFFIX)
+        if set(pair) <= marked and pair not in pairs:
+            pairs.append(pair)
+    return pairs
+
+
+def _solve_residual(result: FitResult) -> np.ndarray:
+    """(k,) the marks' residuals before the deformation, px."""
+    r = result.solve_residual_px if result.solve_residual_px is not None else result.solution.residual_px
+    return np.asarray(r, dtype=float)
+
+
+def _swap_names(slots: list[KeypointSlot], pair: tuple[str, str]) -> list[KeypointSlot]:
+    """``slots`` with the two named marks' names exchanged."""
+    named = keypoint_slots()
+    a, b = pair
+    return [named[b] if s.name == a else named[a] if s.name == b else s for s in slots]
+
+
+#: A mark left out "looks like" another keypoint when the fitted car puts that one within this
+#: fraction of the marks' RMS spread of it (≈ 6 px for a car 900 px wide).
+LOOKS_LIKE_SPREAD = 0.02
+
+
+def _looks_like(result: FitResult, marks: dict[str, tuple[float, float]]) -> dict[str, str]:
+    """{mark left out: the keypoint the fitted car puts where it was clicked}, for those near
+    one (``LOOKS_LIKE_SPREAD``): a click meant for another name."""
+    spread = float(np.sqrt(np.mean(np.sum((result.uv - result.uv.mean(axis=0)) ** 2, axis=1))))
+    cp = result.wireframe.control_points
+    named = keypoint_slots()
+    names = list(named)
+    where = result.project_points(np.array([cp[named[n].point_index] * named[n].sign for n in names]))
+    out = {}
+    for mark, uv in marks.items():
+        d = np.linalg.norm(where - np.asarray(uv), axis=1)
+        d[names.index(mark)] = np.inf
+        j = int(np.argmin(d))
+        if d[j] < LOOKS_LIKE_SPREAD * spread:
+            out[mark] = names[j]
+    return out
 
 
 #: A mark is tested as misplaced when its residual before the deformation exceeds this many
@@ -477,6 +558,15 @@ OUTLIER_SPREAD = 0.03
 MAX_OUTLIERS = 2
 
 
+def _candidates(result: FitResult) -> list[str]:
+    """Names of marks whose residual before the deformation exceeds
+    ``OUTLIER_CANDIDATE_RATIO`` × the median, worst first."""
+    residual = _solve_residual(result)
+    order = np.argsort(-residual)
+    limit = OUTLIER_CANDIDATE_RATIO * float(np.median(residual))
+    return [result.slots[i].name for i in order if residual[i] > limit]
+
+
 def _outliers(result: FitResult, prior_weight: float) -> list[str]:
     """Names of marks the rest of the car says are misplaced, worst first.
 
@@ -492,8 +582,7 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
 
     slots = list(result.slots)
     uv = result.uv if result.to_photo is None else apply_homography(np.linalg.inv(result.to_photo), result.uv)
-    residual = result.solve_residual_px if result.solve_residual_px is not None else result.solution.residual_px
-    residual = np.asarray(residual, dtype=float)
+    residual = _solve_residual(result)
     spread = float(np.sqrt(np.mean(np.sum((uv - uv.mean(axis=0)) ** 2, axis=1))))
     told = result.wheelbase_mm if result.wheelbase_from == "told" else None
     rejected: list[str] = []
@@ -502,15 +591,20 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
         if not residual[i] > OUTLIER_CANDIDATE_RATIO * float(np.median(residual)):
             break
         keep = [j for j in range(len(slots)) if j != i]
-        without = _fit_checked([slots[j] for j in keep], uv[keep], view=result.view, library=result.library,
-                               method=result.method, prior_weight=prior_weight, refine=False,
-                               camera_distance_mm=None if result.view.distance is None else "kept",
-                               wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name)
-        sol, slot = without.solution, slots[i]
-        point = sol.shape.reshape(-1, 3)[slot.point_index] * slot.sign
-        miss = uv[i] - project(point, without.view, sol.scale, sol.offset)
-        jac = np.stack([project(point + d, without.view, sol.scale, sol.offset)
-                        - project(point - d, without.view, sol.scale, sol.offset) for d in np.eye(3)], axis=1) / 2.0
+        slot = slots[i]
+        try:
+            without = _fit_checked([slots[j] for j in keep], uv[keep], view=result.view, library=result.library,
+                                   method=result.method, prior_weight=prior_weight, refine=False,
+                                   camera_distance_mm=None if result.view.distance is None else "kept",
+                                   wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name)
+            sol = without.solution
+            point = sol.shape.reshape(-1, 3)[slot.point_index] * slot.sign
+            miss = uv[i] - project(point, without.view, sol.scale, sol.offset)
+            jac = np.stack([project(point + d, without.view, sol.scale, sol.offset)
+                            - project(point - d, without.view, sol.scale, sol.offset) for d in np.eye(3)],
+                           axis=1) / 2.0
+        except (FitError, AngleError):  # the car without it puts the camera inside: no verdict
+            break
         cov = keypoint_covariance(sol.posterior)[slot.keypoint_id - 1] * np.outer(slot.sign, slot.sign)
         seen = jac @ cov @ jac.T + (KEYPOINT_NOISE * sol.scale) ** 2 * np.eye(2)
         sigmas = float(np.sqrt(miss @ np.linalg.solve(seen, miss)))
@@ -687,10 +781,16 @@ def _deformed(result: FitResult) -> FitResult:
     sol, idx = result.solution, load_topology().keypoint_point_indices
     uv = result.uv if result.to_photo is None else apply_homography(np.linalg.inv(result.to_photo), result.uv)
     before = sol.shape
-    sol.shape = prepared_field(result.library).fit_to_keypoints(before, idx, result.slots, uv,
-                                                                result.view, sol.scale, sol.offset)
-    moved = float(np.max(np.linalg.norm((sol.shape - before).reshape(-1, 3), axis=1)))
+    after = prepared_field(result.library).fit_to_keypoints(before, idx, result.slots, uv,
+                                                            result.view, sol.scale, sol.offset)
     result.solve_residual_px = np.array(sol.residual_px, dtype=float)
+    if result.view.distance is not None:
+        try:
+            perspective_factors(np.concatenate([after.reshape(-1, 3), after.reshape(-1, 3) * MIRROR]), result.view)
+        except AngleError:  # marks that would pull part of the car through the camera: not followed
+            return result
+    sol.shape = after
+    moved = float(np.max(np.linalg.norm((sol.shape - before).reshape(-1, 3), axis=1)))
     result.wireframe = Wireframe(result.wireframe.name, sol.shape.reshape(-1, 3) * result.mm_per_unit)
     result.deformation_mm = moved * result.mm_per_unit
     sol.residual_px = np.linalg.norm(result.reprojected() - result.uv, axis=1)
