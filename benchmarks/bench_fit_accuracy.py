@@ -222,16 +222,18 @@ def rejections(rows: list[dict]) -> str:
     """Marks the fits left out as misplaced, per case: how many fits left any out, how many marks,
     and how many of those were the ones moved (``--outliers``)."""
     lines = ["Marks left out as misplaced (fits that left any out; marks left out, of them moved by "
-             "--outliers or swapped by --swap-pair; moved marks kept; pairs the fit exchanged back):", "",
-             "| case | fits | marks left out | of them moved | moved, kept | pairs exchanged back |",
+             "--outliers or swapped by --swap-pair; moved marks kept; fits that exchanged a pair's "
+             "names, of them the pair --swap-pair swapped):", "",
+             "| case | fits | marks left out | of them moved | moved, kept | pairs exchanged (the swapped) |",
              "|---|---|---|---|---|---|"]
     for label, group in _by_case(rows):
         fits = sum(bool(r["rejected"]) for r in group)
         marks = sum(len(r["rejected"]) for r in group)
         right = sum(len(set(r["rejected"]) & set(r["moved"])) for r in group)
         kept = sum(len(set(r["moved"]) - set(r["rejected"]) - set(r["swapped"])) for r in group)
+        swaps = sum(bool(r["swapped"]) for r in group)
         back = sum(bool(r["swapped"]) and set(r["swapped"]) == set(r["moved"]) for r in group)
-        lines.append(f"| {label} | {fits} of {len(group)} | {marks} | {right} | {kept} | {back} |")
+        lines.append(f"| {label} | {fits} of {len(group)} | {marks} | {right} | {kept} | {swaps} ({back}) |")
     return "\n".join(lines)
 
 

@@ -421,8 +421,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             focal length × its diagonal in pixels / 43.3 mm, :mod:`carbody.fit.focal`): the
             turn toward an off-centre car then uses it, with no search.
         reject_outliers: leave out up to ``MAX_OUTLIERS`` marks the rest of the car says are
-            misplaced (:func:`_outliers`; Gaussian-prior methods): they are named in
-            ``FitResult.rejected_px``.
+            misplaced (:func:`_outliers`), and fit a left/right pair whose names were exchanged
+            with them exchanged back (Gaussian-prior methods): named in
+            ``FitResult.rejected_px`` and ``FitResult.swapped_names``.
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -477,7 +478,12 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         _, slots, result, rejected, swapped = best
     if rejected:
         keep = [i for i, s in enumerate(slots) if s.name not in rejected]
-        result = _fit_marks([slots[i] for i in keep], uv[keep], **marks)
+        try:
+            without = _fit_marks([slots[i] for i in keep], uv[keep], **marks)
+        except (FitError, AngleError):  # the rest alone pin nothing down: keep every mark
+            result.swapped_names = swapped
+            return result
+        result = without
         result.rejected_px = {n: float(e) for n, e in zip(rejected, _distances_to_marks(result, rejected, slots, uv))}
         result.rejected_uv = {s.name: (float(p[0]), float(p[1])) for s, p in zip(slots, uv) if s.name in rejected}
         result.rejected_looks_like = _looks_like(result, result.rejected_uv)
