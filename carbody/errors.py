@@ -45,8 +45,11 @@ class SideError(FitError):
     """
 
     def __init__(self, message: str, azimuth: float):
-        super().__init__(message)
+        super().__init__(message, azimuth)  # both in args: the error pickles (worker processes)
         self.azimuth = azimuth
+
+    def __str__(self) -> str:
+        return str(self.args[0])
 
 
 class KeypointError(FitError):

@@ -446,7 +446,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
         library = load_library()
     slots, uv = check_keypoints(keypoints, image_size, load_topology())
-    _check_side(slots, view, library)
+    said = _check_side(slots, view, library)
     principal = _principal_point(principal_point, image_size, focal_px)
     if focal_px is not None and not (np.isfinite(focal_px) and focal_px > 0):
         raise FitError(f"focal length {focal_px!r} px is not a positive number")
@@ -455,6 +455,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                  camera_distance_mm=camera_distance_mm, wheelbase_mm=wheelbase_mm, name=name,
                  principal=principal, focal_px=focal_px, deform=deform)
     result = _fit_marks(slots, uv, **marks)
+    if said is not None:
+        _check_end(result, said, slots, uv, marks)
     if not reject_outliers or method == "paper":
         return result
     rejected, swapped = _outliers(result, prior_weight), None
@@ -685,27 +687,57 @@ def _fit_marks(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: L
     return _deformed(result) if deform else result
 
 
-def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> None:
-    """Refuse a view from which many marks cannot be seen but from its mirror, or from the car's
-    other end, can (:func:`carbody.fit.visibility.view_the_marks_say`): the photo shows the
-    car's other side (a classifier's left/right mistake, 30° given for 330°) or end (30° given
-    for 150°), or the marks' names are swapped. The refinement stays near the given view, so it
-    could only bend the car through itself to fit them.
+def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> tuple | None:
+    """Refuse a view from which many marks cannot be seen but from its mirror can
+    (:func:`carbody.fit.visibility.view_the_marks_say`): the photo shows the car's other side
+    (a classifier's left/right mistake, 30° given for 330°) or the marks' left/right names are
+    swapped. The refinement stays near the given view, so it could only bend the car through
+    itself to fit them. When the marks say the car's other end instead (30° given for 150°),
+    the names alone are not enough (a deck seen over the roof from a little above): returns
+    what they say for :func:`_check_end`, which fits both.
 
     Raises:
-        SideError: naming the view the marks say.
+        SideError: naming the mirror view.
     """
     from carbody.fit.visibility import view_the_marks_say
 
     said = view_the_marks_say([s.name for s in slots], view, library_mean(library).reshape(-1, 3))
-    if said is None:
-        return
-    azimuth, what, hidden = said
-    cause = ("the car's other side, or the marks' left/right names are swapped" if what == "side" else
-             "the car's other end (front for rear), or the marks' front/rear names are swapped")
+    if said is None or said[1] == "end":
+        return said
+    azimuth, _, hidden = said
     raise SideError(f"{len(hidden)} of the {len(slots)} keypoints ({', '.join(hidden[:3])}, …) cannot be seen "
                     f"from a view of {view.azimuth:g}° but can from one of {azimuth:g}°: the photo shows "
-                    + cause, azimuth)
+                    "the car's other side, or the marks' left/right names are swapped", azimuth)
+
+
+#: The car's other end is taken for the photo's when the fit there beats the given view's by this
+#: much: −log evidence (Gaussian-prior methods) …
+END_EVIDENCE_MARGIN = 20.0
+
+#: … or this factor on the cost (the paper's solve).
+END_COST_FACTOR = 0.5
+
+
+def _check_end(result: FitResult, said: tuple, slots: list[KeypointSlot], uv: np.ndarray, marks: dict) -> None:
+    """Refuse the given view when the marks fit the car's other end far better (``said`` from
+    :func:`carbody.fit.visibility.view_the_marks_say`; ``END_EVIDENCE_MARGIN``).
+
+    Raises:
+        SideError: naming that view.
+    """
+    azimuth, _, hidden = said
+    view = marks["view"]
+    try:
+        other = _fit_marks(slots, uv, **{**marks, "view": View(azimuth, view.elevation, view.roll), "deform": False})
+    except (FitError, AngleError):
+        return
+    here, there = view_score(result.solution), view_score(other.solution)
+    better = (there < here * END_COST_FACTOR if result.method == "paper" else there < here - END_EVIDENCE_MARGIN)
+    if better:
+        raise SideError(f"{len(hidden)} of the {len(slots)} keypoints ({', '.join(hidden[:3])}, …) are hidden from "
+                        f"a view of {view.azimuth:g}° and the marks fit one of {azimuth:g}° far better: the "
+                        "photo shows the car's other end (front for rear), or the marks' front/rear names "
+                        "are swapped", azimuth)
 
 
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
