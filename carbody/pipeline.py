@@ -256,7 +256,7 @@ def _read_inputs(image, keypoints):
 def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float | None = None, *,
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
                 principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
-                name: str | None = None, library=None,
+                name: str | None = None, library=None, reject_outliers: bool = True,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
 
@@ -279,6 +279,9 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
             off-centre car uses it.
         name: the car's name in the STEP files (default: the photo's file stem).
         library: a :class:`carbody.library.Library` (default the shipped one).
+        reject_outliers: leave out marks the others say are misplaced and exchange a swapped
+            left/right pair back (:func:`carbody.fit.fit_wireframe`); False fits every mark as
+            named.
         on_stage: called with each stage's name as it starts (progress display).
 
     Raises:
@@ -319,7 +322,7 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
         return fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                              image_size=(w, h), wheelbase_mm=wheelbase_mm,
                              camera_distance_mm=camera_distance_mm, principal_point=principal_point,
-                             focal_px=focal, name=name)
+                             focal_px=focal, reject_outliers=reject_outliers, name=name)
 
     try:
         fit = fit_at(azimuth)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
-    from carbody.fit.cli import add_camera_arguments
+    from carbody.fit.cli import add_camera_arguments, add_marks_argument
 
     p = sub.add_parser("reconstruct", help="photo + keypoints -> wireframe and body STEP, pictures, report",
                        description="Run view (unless --view is given) -> fit -> surfaces and write "
@@ -23,6 +23,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="the car's wheelbase in mm (default: fitted); told, the fit also knows "
                         "the car's width and height in mm")
     add_camera_arguments(p)
+    add_marks_argument(p)
     p.add_argument("--truth", default=None, help="ground truth wireframe STEP or template name: adds 3D errors")
     p.add_argument("--name", default=None, help="the car's name in the STEP files (default: photo file stem)")
     p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
@@ -59,7 +60,7 @@ def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
         result = reconstruct(args.image, args.keypoints, view, args.wheelbase, name=args.name,
                              camera_distance_mm=distance,
                              principal_point=args.principal_point, focal_35mm=args.focal_35mm,
-                             on_stage=on_stage)
+                             reject_outliers=not args.keep_marks, on_stage=on_stage)
         bar.update(1)
         bar.set_description("write")
         paths = result.write(args.out, truth)

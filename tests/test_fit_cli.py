@@ -138,6 +138,12 @@ def test_a_misplaced_mark_is_left_out_and_named(photo, tmp_path):
     overlay = read_image(tmp_path / "ov.png")
     near = overlay[round(v + 60) - 6:round(v + 60) + 7, round(u) - 6:round(u) + 7].reshape(-1, 3).astype(int)
     assert np.any((near[:, 0] > 200) & (near[:, 1] < 80) & (near[:, 2] > 200))  # magenta (RGB)
+    # told to keep every mark, it does
+    run_cli("fit", str(photo / "car.png"), "--keypoints", str(tmp_path / "car.json"), "--view", "30",
+            "--exclude-template", "Volvo V60", "-o", str(tmp_path / "kept.step"), "--keep-marks",
+            "--report", str(tmp_path / "kept.json"), check=True)
+    kept = json.loads((tmp_path / "kept.json").read_text())
+    assert kept["rejected_keypoints"] == {} and "b_pillar_top" in kept["residual_px"]
 
 
 def test_visible_keypoints_command():

@@ -8,6 +8,13 @@ from pathlib import Path
 from carbody.fit.solve import METHODS
 
 
+def add_marks_argument(p: argparse.ArgumentParser) -> None:
+    """``--keep-marks``, shared by ``fit`` and ``reconstruct``."""
+    p.add_argument("--keep-marks", action="store_true",
+                   help="fit every mark as named: do not leave out marks the others say are "
+                        "misplaced, nor exchange a left/right pair's names back")
+
+
 def add_camera_arguments(p: argparse.ArgumentParser) -> None:
     """The photo's camera options, shared by ``fit`` and ``reconstruct``."""
     p.add_argument("--distance", default="auto", metavar="MM|auto|orthographic",
@@ -74,6 +81,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-deform", action="store_true",
                    help="skip the smooth move onto the marked keypoints after the solve (the "
                         "solve's own along-the-car field stays)")
+    add_marks_argument(p)
     p.add_argument("--output", "-o", required=True, help="wireframe STEP file to write")
     p.add_argument("--overlay", help="PNG: photo + annotated (red) / reprojected (green) keypoints + wireframe")
     p.add_argument("--report", help="JSON report: view, 3D keypoints, residuals, weights, errors")
@@ -142,7 +150,7 @@ def run_fit(args: argparse.Namespace) -> int:
     focal, focal_source = focal_length_px(args.image, (w, h), args.focal_35mm)
     result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                            method=args.method, refine=not args.no_refine,
-                           deform=False if args.no_deform else None,
+                           deform=False if args.no_deform else None, reject_outliers=not args.keep_marks,
                            camera_distance_mm=distance, principal_point=args.principal_point,
                            focal_px=focal,
                            name=args.name or Path(args.image).stem)
