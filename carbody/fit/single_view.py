@@ -455,8 +455,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                  camera_distance_mm=camera_distance_mm, wheelbase_mm=wheelbase_mm, name=name,
                  principal=principal, focal_px=focal_px, deform=deform)
     result = _fit_marks(slots, uv, **marks)
-    if said is not None:
-        _check_end(result, said, slots, uv, marks)
+    _check_end(result, said, slots, uv, marks)
     if not reject_outliers or method == "paper":
         return result
     rejected, swapped = _outliers(result, prior_weight), None
@@ -694,7 +693,7 @@ def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> tupl
     swapped. The refinement stays near the given view, so it could only bend the car through
     itself to fit them. When the marks say the car's other end instead (30° given for 150°),
     the names alone are not enough (a deck seen over the roof from a little above): returns
-    what they say for :func:`_check_end`, which fits both.
+    what they say, for :func:`_check_end`'s message.
 
     Raises:
         SideError: naming the mirror view.
@@ -710,34 +709,54 @@ def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> tupl
                     "the car's other side, or the marks' left/right names are swapped", azimuth)
 
 
-#: The car's other end is taken for the photo's when the fit there beats the given view's by this
-#: much: −log evidence (Gaussian-prior methods) …
+#: Within this many degrees of the front or rear, a fit is checked against the car's other end
+#: (θ ↔ 180° − θ) when the marks' names say so or its −log evidence exceeds this per coordinate
+#: (Gaussian-prior methods; on the leave-one-out templates, 1 px of noise: at most 5.1 at the
+#: true view, at least 19.4 at the other end) …
+END_CHECK_DEG = 60.0
+END_SUSPECT_EVIDENCE = 10.0
+
+#: … and the other end is taken for the photo's when the fit there beats the given view's by
+#: this much: −log evidence (on those templates the two differ by over 2700 one way or the
+#: other) …
 END_EVIDENCE_MARGIN = 20.0
 
-#: … or this factor on the cost (the paper's solve).
+#: … or this factor on the cost (the paper's solve, checked only when the names say so).
 END_COST_FACTOR = 0.5
 
 
-def _check_end(result: FitResult, said: tuple, slots: list[KeypointSlot], uv: np.ndarray, marks: dict) -> None:
-    """Refuse the given view when the marks fit the car's other end far better (``said`` from
-    :func:`carbody.fit.visibility.view_the_marks_say`; ``END_EVIDENCE_MARGIN``).
+def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot], uv: np.ndarray,
+               marks: dict) -> None:
+    """Refuse a view near the front or rear when the marks fit the car's other end far better.
+    A front three-quarter photo told the rear three-quarter view fits, bent, with a few pixels
+    of residual; its evidence gives it away. The other end is fitted (as the given view was)
+    only when the marks' names say so (``said``, from
+    :func:`carbody.fit.visibility.view_the_marks_say`) or the fit's evidence is poor
+    (``END_SUSPECT_EVIDENCE``), so a sound fit costs nothing more.
 
     Raises:
         SideError: naming that view.
     """
-    azimuth, _, hidden = said
-    view = marks["view"]
+    given = marks["view"]
+    if min(abs((given.azimuth + 180.0) % 360.0 - 180.0), abs(given.azimuth - 180.0)) > END_CHECK_DEG:
+        return
+    here = view_score(result.solution)
+    paper = result.method == "paper"
+    if said is None and (paper or here <= END_SUSPECT_EVIDENCE * 2 * len(slots)):
+        return
+    azimuth = (180.0 - given.azimuth) % 360.0
     try:
-        other = _fit_marks(slots, uv, **{**marks, "view": View(azimuth, view.elevation, view.roll), "deform": False})
+        other = _fit_marks(slots, uv, **{**marks, "view": View(azimuth, given.elevation, given.roll), "deform": False})
     except (FitError, AngleError):
         return
-    here, there = view_score(result.solution), view_score(other.solution)
-    better = (there < here * END_COST_FACTOR if result.method == "paper" else there < here - END_EVIDENCE_MARGIN)
-    if better:
-        raise SideError(f"{len(hidden)} of the {len(slots)} keypoints ({', '.join(hidden[:3])}, …) are hidden from "
-                        f"a view of {view.azimuth:g}° and the marks fit one of {azimuth:g}° far better: the "
-                        "photo shows the car's other end (front for rear), or the marks' front/rear names "
-                        "are swapped", azimuth)
+    there = view_score(other.solution)
+    if not (there < here * END_COST_FACTOR if paper else there < here - END_EVIDENCE_MARGIN):
+        return
+    names = "" if said is None else (f"; {len(said[2])} of the {len(slots)} keypoints ({', '.join(said[2][:3])}, …) "
+                                     "cannot be seen from the view given")
+    raise SideError(f"the marks fit a view of {azimuth:g}° far better than the {given.azimuth:g}° given "
+                    f"(−log evidence {there:.0f} against {here:.0f}{names}): the photo shows the car's other "
+                    "end (front for rear), or the marks' front/rear names are swapped", azimuth)
 
 
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
