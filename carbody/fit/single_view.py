@@ -716,9 +716,9 @@ def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> tupl
 END_CHECK_DEG = 60.0
 END_SUSPECT_EVIDENCE = 10.0
 
-#: … and the other end is taken for the photo's when the fit there beats the given view's by
-#: this much: −log evidence (on those templates the two differ by over 2700 one way or the
-#: other) …
+#: … and the other end is taken for the photo's when the fit there is sound (within
+#: ``END_SUSPECT_EVIDENCE``) and beats the given view's by this much: −log evidence (on those
+#: templates the two differ by over 2700 one way or the other) …
 END_EVIDENCE_MARGIN = 20.0
 
 #: … or this factor on the cost (the paper's solve, checked only when the names say so).
@@ -750,7 +750,10 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
     except (FitError, AngleError):
         return
     there = view_score(other.solution)
-    if not (there < here * END_COST_FACTOR if paper else there < here - END_EVIDENCE_MARGIN):
+    # (a sound fit there, not merely a less bad one: a left/right pair swapped on a front view
+    # fits both ends badly, and is for the rejection to mend)
+    sound = paper or there <= END_SUSPECT_EVIDENCE * 2 * len(slots)
+    if not (sound and (there < here * END_COST_FACTOR if paper else there < here - END_EVIDENCE_MARGIN)):
         return
     names = "" if said is None else (f"; {len(said[2])} of the {len(slots)} keypoints ({', '.join(said[2][:3])}, …) "
                                      "cannot be seen from the view given")
