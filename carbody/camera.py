@@ -204,6 +204,12 @@ def mirror_view(view: View) -> View:
                 (-view.aim[0], view.aim[1], view.aim[2]))
 
 
+def degrees_from_axis(azimuth: float) -> float:
+    """How far (degrees) a view's azimuth lies from the car's long axis: 0 straight from the
+    front or rear, 90 from a side."""
+    return min(abs((azimuth + 180.0) % 360.0 - 180.0), abs(azimuth % 360.0 - 180.0))
+
+
 def read_view(text: str | float) -> float:
     """A view as a person types it: an azimuth in degrees (0–360, else :class:`AngleError`) or a
     name (:func:`parse_view`: ``"front 30"``, ``"rear 30"``, ``"side"``, ``"front 30 right"``)."""

@@ -27,6 +27,10 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
 
     out = image.copy()
     thick = max(1, round(max(out.shape[:2]) / 800))
+
+    def label(slot, at: tuple[int, int], colour: tuple[int, int, int]) -> None:  # Fig. 6 number, ' for a mirror
+        cv2.putText(out, str(slot.keypoint_id) + ("'" if slot.is_mirror else ""), at,
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.35 * thick, colour, thick, cv2.LINE_AA)
     cp = result.wireframe.control_points
     for half in (cp, cp * MIRROR):
         for curve in sample_curves(half, 24):
@@ -43,9 +47,7 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
         cv2.circle(out, (round(u), round(v)), r, (0, 0, 255), -1, cv2.LINE_AA)
         cv2.circle(out, (round(pu), round(pv)), r, (0, 200, 0), thick, cv2.LINE_AA)
         if labels:
-            cv2.putText(out, str(slot.keypoint_id) + ("'" if slot.is_mirror else ""),
-                        (round(u) + r + 1, round(v) - r - 1), cv2.FONT_HERSHEY_SIMPLEX,
-                        0.35 * thick, (0, 0, 200), thick, cv2.LINE_AA)
+            label(slot, (round(u) + r + 1, round(v) - r - 1), (0, 0, 200))
     slots = keypoint_slots()
     for name, (u, v) in result.rejected_uv.items():
         slot = slots[name]
@@ -56,9 +58,7 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
             cv2.line(out, (round(u - 2 * r), round(v - 2 * r * du)), (round(u + 2 * r), round(v + 2 * r * du)),
                      (255, 0, 255), 2 * thick, cv2.LINE_AA)
         if labels:
-            cv2.putText(out, str(slot.keypoint_id) + ("'" if slot.is_mirror else ""),
-                        (round(u) + 2 * r + 1, round(v) - 2 * r - 1), cv2.FONT_HERSHEY_SIMPLEX,
-                        0.35 * thick, (255, 0, 255), thick, cv2.LINE_AA)
+            label(slot, (round(u) + 2 * r + 1, round(v) - 2 * r - 1), (255, 0, 255))
     return out
 
 

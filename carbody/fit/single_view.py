@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from carbody.errors import AngleError, FitError, SideError
-from carbody.camera import View, apply_homography, look_at_homography, perspective_factors, project
+from carbody.camera import (View, apply_homography, degrees_from_axis, look_at_homography, perspective_factors,
+                            project)
 from carbody.fit.deform import DeformationField, joint_field_basis
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints, keypoint_slots
 from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
@@ -338,10 +339,15 @@ class FitResult:
         ``SUSPECT_RESIDUAL_RATIO`` × the median and over ``SUSPECT_RESIDUAL_SPREAD`` × the marks'
         spread (a mark in the wrong place, or two names swapped)."""
         res = self.residuals_px()
-        spread = float(np.sqrt(np.mean(np.sum((self.uv - self.uv.mean(axis=0)) ** 2, axis=1))))
+        spread = keypoint_spread(self.uv)
         limit = max(SUSPECT_RESIDUAL_RATIO * float(np.median(list(res.values()))),
                     SUSPECT_RESIDUAL_SPREAD * spread)
         return sorted((n for n, r in res.items() if r > limit), key=lambda n: -res[n])
+
+    def marks_in_fit_camera(self) -> np.ndarray:
+        """(k, 2) the marks in the fitted camera's pixels: ``uv``, or, when the camera was turned
+        toward an off-centre car, ``uv`` taken back through the turn."""
+        return self.uv if self.to_photo is None else apply_homography(np.linalg.inv(self.to_photo), self.uv)
 
     def project_points(self, points_mm: np.ndarray) -> np.ndarray:
         """(..., 2) pixels of car-frame points (mm) under the fitted camera."""
@@ -534,7 +540,7 @@ LOOKS_LIKE_SPREAD = 0.02
 def _looks_like(result: FitResult, marks: dict[str, tuple[float, float]]) -> dict[str, str]:
     """{mark left out: the keypoint the fitted car puts where it was clicked}, for those near
     one (``LOOKS_LIKE_SPREAD``): a click meant for another name."""
-    spread = float(np.sqrt(np.mean(np.sum((result.uv - result.uv.mean(axis=0)) ** 2, axis=1))))
+    spread = keypoint_spread(result.uv)
     cp = result.wireframe.control_points
     named = keypoint_slots()
     names = list(named)
@@ -588,9 +594,9 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
     from carbody.fit.keypoints_io import MIN_KEYPOINTS
 
     slots = list(result.slots)
-    uv = result.uv if result.to_photo is None else apply_homography(np.linalg.inv(result.to_photo), result.uv)
+    uv = result.marks_in_fit_camera()
     residual = _solve_residual(result)
-    spread = float(np.sqrt(np.mean(np.sum((uv - uv.mean(axis=0)) ** 2, axis=1))))
+    spread = keypoint_spread(uv)
     told = result.wheelbase_mm if result.wheelbase_from == "told" else None
     rejected: list[str] = []
     while len(rejected) < MAX_OUTLIERS and len(slots) > MIN_KEYPOINTS:
@@ -711,14 +717,14 @@ def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> tupl
 
 #: Within this many degrees of the front or rear, a fit is checked against the car's other end
 #: (θ ↔ 180° − θ) when the marks' names say so or its −log evidence exceeds this per coordinate
-#: (Gaussian-prior methods; on the leave-one-out templates, 1 px of noise: at most 5.1 at the
-#: true view, at least 19.4 at the other end) …
+#: (Gaussian-prior methods; set between the leave-one-out templates' fits at their true view and
+#: at the other end, which lie well apart: ``test_a_view_given_for_the_car_s_other_end_is_refused``) …
 END_CHECK_DEG = 60.0
 END_SUSPECT_EVIDENCE = 10.0
 
 #: … and the other end is taken for the photo's when the fit there is sound (within
-#: ``END_SUSPECT_EVIDENCE``) and beats the given view's by this much: −log evidence (on those
-#: templates the two differ by over 2700 one way or the other) …
+#: ``END_SUSPECT_EVIDENCE``) and beats the given view's by this much −log evidence (on those
+#: templates the two differ by far more, one way or the other) …
 END_EVIDENCE_MARGIN = 20.0
 
 #: … or this factor on the cost (the paper's solve, checked only when the names say so).
@@ -738,7 +744,7 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
         SideError: naming that view.
     """
     given = marks["view"]
-    if min(abs((given.azimuth + 180.0) % 360.0 - 180.0), abs(given.azimuth - 180.0)) > END_CHECK_DEG:
+    if degrees_from_axis(given.azimuth) > END_CHECK_DEG:
         return
     here = view_score(result.solution)
     paper = result.method == "paper"
@@ -839,7 +845,7 @@ def _deformed(result: FitResult) -> FitResult:
     """The fit with its mix moved onto the marks by the photo-matching deformation
     (:mod:`carbody.fit.deform`), in the fit's own camera (a turned one's pixels, if turned)."""
     sol, idx = result.solution, load_topology().keypoint_point_indices
-    uv = result.uv if result.to_photo is None else apply_homography(np.linalg.inv(result.to_photo), result.uv)
+    uv = result.marks_in_fit_camera()
     before = sol.shape
     after = prepared_field(result.library).fit_to_keypoints(before, idx, result.slots, uv,
                                                             result.view, sol.scale, sol.offset)

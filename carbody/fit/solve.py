@@ -78,8 +78,8 @@ STRIDE_SAMPLE = 2000
 
 
 def keypoint_spread(keypoints: np.ndarray) -> float:
-    """RMS distance of (35, 3) keypoints from their centroid: a model's ``size``, the unit its
-    solve measures image residuals against."""
+    """RMS distance of (k, 3) keypoints (or (k, 2) marks, pixels) from their centroid: a model's
+    ``size``, the unit its solve measures image residuals against; the marks' spread."""
     return float(np.sqrt(np.mean(np.sum((keypoints - keypoints.mean(axis=0)) ** 2, axis=1))))
 
 

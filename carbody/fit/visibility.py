@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from carbody.camera import View, camera_direction, mirror_view, perspective_factors, project
+from carbody.camera import View, camera_direction, degrees_from_axis, mirror_view, perspective_factors, project
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
 from carbody.topology import Topology, load_topology
 
@@ -195,8 +195,7 @@ def view_the_marks_say(names: list[str], view: View, control_points: np.ndarray 
         there = set(visible_keypoints(mirror, control_points, occlusion=False))
         if sum(n not in there for n in names) <= SIDE_RATIO * len(hidden):
             return mirror.azimuth, "side", hidden
-    off_axis = min(abs((view.azimuth + 180.0) % 360.0 - 180.0), abs(view.azimuth - 180.0))
-    if off_axis <= END_RANGE_DEG:
+    if degrees_from_axis(view.azimuth) <= END_RANGE_DEG:
         swapped = View((180.0 - view.azimuth) % 360.0, view.elevation, view.roll)
         seen_here = set(visible_keypoints(level, control_points))
         seen_there = set(visible_keypoints(swapped, control_points))
