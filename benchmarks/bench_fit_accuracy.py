@@ -11,10 +11,11 @@ by +10° without and with the view refinement. Methods: ``paper`` (plain ΣH = 1
 prior) and ``mixture`` (a Gaussian around each template, the default), the Gaussian-prior cases
 with the photo-matching deformation (default) and, where marked "no deform", without it.
 ``--sweep`` also scans the default method's prior weight λ on the known-view case;
-``--elevation`` views from above; ``--distance`` photographs with a pinhole camera.
+``--elevation`` views from above; ``--distance`` photographs with a pinhole camera;
+``--other-end`` runs only the check that a view near the front or rear is not the car's other end.
 
 Run: python benchmarks/bench_fit_accuracy.py [--quick] [--sweep] [--elevation DEG] [--distance MM]
-    [--known-only] [--json out.json]
+    [--known-only] [--other-end] [--json out.json]
 """
 from __future__ import annotations
 
@@ -216,6 +217,66 @@ def run_template(args) -> list[dict]:
                          "expected_mm": expected, "error_mm": err.tolist(),
                          "seconds": dt})
     return rows
+
+
+def run_other_end(args) -> list[dict]:
+    """Template t's views within ``END_CHECK_DEG`` of the front or rear, each fitted told its
+    true view and told the car's other end (180° − θ): refused or not (a ``SideError`` naming
+    which view), and each fit's −log evidence per coordinate with the check turned off and every
+    mark kept (as the check sees it) — what the check's level (``END_SUSPECT_EVIDENCE``) and margin are set between."""
+    t, angles, elevation, noise_px = args
+    import carbody.fit.single_view as single_view
+    from carbody.camera import View, degrees_from_axis
+    from carbody.errors import FitError, SideError
+    from carbody.fit.refine import view_score
+    from carbody.fit.single_view import fit_wireframe
+
+    name, loo, truth, wb, _ = left_out(t)
+    rng = np.random.default_rng(2000 + t)
+    check = single_view.END_CHECK_DEG
+    rows = []
+    for azimuth in angles:
+        if degrees_from_axis(azimuth) > check:
+            continue
+        kps, size, _ = synthetic_view(truth, azimuth, rng, elevation, noise_px=noise_px)
+        for told in (azimuth, (180.0 - azimuth) % 360.0):
+            row = {"template": name, "azimuth": azimuth, "told": "true view" if told == azimuth else "other end",
+                   "refused_as": None, "failed": None}
+            kw = dict(image_size=size, wheelbase_mm=wb)
+            try:
+                single_view.END_CHECK_DEG = -1.0  # the check off: this view's own evidence
+                fit = fit_wireframe(kps, View(told, elevation), loo, reject_outliers=False, **kw)
+                row["evidence_per_coordinate"] = view_score(fit.solution) / (2 * len(fit.slots))
+            except FitError as e:
+                row["failed"] = str(e)
+            finally:
+                single_view.END_CHECK_DEG = check
+            try:
+                fit_wireframe(kps, View(told, elevation), loo, **kw)
+            except SideError as e:
+                row["refused_as"] = e.azimuth
+            except FitError as e:
+                row["failed"] = str(e)
+            rows.append(row)
+    return rows
+
+
+def other_end_table(rows: list[dict]) -> str:
+    """``--other-end``: refusals and −log evidence per coordinate, told the true view or the
+    other end."""
+    from carbody.fit.single_view import END_SUSPECT_EVIDENCE
+
+    out = [f"| told | fits | refused | of them naming the true view | failed otherwise | −log evidence per "
+           f"coordinate, check off: min / median / max | above {END_SUSPECT_EVIDENCE:g} (checked) |",
+           "|---|---|---|---|---|---|---|"]
+    for told in ("true view", "other end"):
+        rs = [r for r in rows if r["told"] == told]
+        ev = np.array([r["evidence_per_coordinate"] for r in rs if "evidence_per_coordinate" in r])
+        refused = [r for r in rs if r["refused_as"] is not None]
+        right = sum(abs((r["refused_as"] - r["azimuth"] + 180) % 360 - 180) < 1e-6 for r in refused)
+        out.append(f"| {told} | {len(rs)} | {len(refused)} | {right} | {sum(r['failed'] is not None for r in rs)} "
+                   f"| {ev.min():.1f} / {np.median(ev):.1f} / {ev.max():.1f} | {int(np.sum(ev > END_SUSPECT_EVIDENCE))} |")
+    return "\n".join(out)
 
 
 def rejections(rows: list[dict]) -> str:
@@ -445,6 +506,9 @@ def main(argv=None) -> int:
                          "the local part of the deformation after the fit (default LOCAL_LENGTH in "
                          "every direction); e.g. 800,120,120 correlates it across the car like the "
                          "joint field")
+    ap.add_argument("--other-end", action="store_true",
+                    help="only the other-end check: each view within END_CHECK_DEG of the front or "
+                         "rear fitted told its true view and told the car's other end (180° − θ)")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -475,6 +539,19 @@ def main(argv=None) -> int:
     n_templates = len(load_library().template_names)
     templates = [0, 5, 9] if args.quick else list(range(n_templates))
     angles = (0, 30, 90, 150, 180) if args.quick else ANGLES
+    if args.other_end:
+        t0 = time.perf_counter()
+        with ProcessPoolExecutor(args.workers) as pool:
+            rows = [r for part in pool.map(run_other_end, [(t, angles, args.elevation, args.noise)
+                                                              for t in templates]) for r in part]
+        print(f"# The car's other end, leave-one-out: {len(templates)} templates, views within the check's "
+              f"range of the front or rear, elevation {args.elevation:g}°, {args.noise:g} px noise "
+              f"({time.perf_counter() - t0:.0f} s)\n")
+        print(other_end_table(rows))
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(rows, f, indent=1)
+        return 0
     cases = [("paper", None, 0.0, False, False), ("gauss", None, 0.0, False, True),
              ("gauss", None, 0.0, False, False), ("mixture", None, 0.0, False, True),
              # a user who does not know the wheelbase: the plain shape model, the error at the
