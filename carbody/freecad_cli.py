@@ -1,8 +1,8 @@
 """``carbody freecad OUT_DIR -o car.FCStd``: a reconstruction as a FreeCAD document.
 
 Runs FreeCAD's own ``freecadcmd`` (FreeCAD has its own OCCT build) with the workbench's headless
-core: the photo as an image plane, the wireframe as one Part object per curve, the body as one
-Part object per region plus the sewn shell.
+core: the photo as an image plane lined up with the fitted camera, the wireframe as one Part
+object per curve, the body as one Part object per region plus the sewn shell.
 """
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ out, target = {out!r}, {target!r}
 doc = FreeCAD.newDocument("carbody")
 report = json.load(open(os.path.join(out, "report.json")))
 if report.get("image") and os.path.isfile(report["image"]):
-    core.add_photo(doc, report["image"])
+    core.line_up_photo(doc, report["image"], report) or core.add_photo(doc, report["image"])
 wire = core.import_step_parts(doc, os.path.join(out, "wireframe.step"), "Wireframe")
 body = core.import_step_parts(doc, os.path.join(out, "body.step"), "Body")
 doc.saveAs(target)

@@ -107,7 +107,7 @@ class Reconstruction:
             "car": self.name,
             "image": str(self.image_path) if self.image_path else None,
             "view": view,
-            "fit": build_report(self.fit, truth),
+            "fit": build_report(self.fit, truth, image=self.image_path),
             "surfaces": {"faces": len(self.body.faces), **shell},
             "timings_s": self.timings_s,
         }

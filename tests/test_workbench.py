@@ -8,7 +8,9 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy as np
 import pytest
+from PIL import Image
 
 from tests.conftest import REPO
 
@@ -66,20 +68,32 @@ print("RESULT " + json.dumps({{
     assert any(abs(p - result["first"]).max() < 1e-3 for p in first)
 
 
-def test_the_photo_becomes_an_image_plane_with_its_aspect(tmp_path):
+def test_the_photo_becomes_an_upright_image_plane_with_its_aspect(tmp_path):
+    """Loaded before any fit, the photo stands in the car's side plane as the left side is seen
+    (the picture's right toward the rear, +y; its up, +z) — a phone photo stored on its side
+    (EXIF orientation 6) too, turned upright."""
     import cv2
-    import numpy as np
 
     for name in ("car.png", "car.jpg"):
         cv2.imwrite(str(tmp_path / name), np.full((300, 800, 3), 200, np.uint8))
+    exif = Image.Exif()
+    exif[0x0112] = 6  # stored 300 wide, 800 high: upright 800 × 300
+    Image.new("RGB", (300, 800)).save(tmp_path / "phone.jpg", exif=exif)
     result = run_freecad(f"""
 import json, FreeCAD
 from carbody_wb import core
 doc = FreeCAD.newDocument("t")
-planes = [core.add_photo(doc, {str(tmp_path)!r} + "/" + n, 4000.0) for n in ("car.png", "car.jpg")]
-print("RESULT " + json.dumps([[float(p.XSize), float(p.YSize)] for p in planes]))
+planes = [core.add_photo(doc, {str(tmp_path)!r} + "/" + n, 4000.0) for n in ("car.png", "car.jpg", "phone.jpg")]
+def axis(p, v):
+    return list(p.Placement.Rotation.multVec(FreeCAD.Vector(*v)))
+print("RESULT " + json.dumps([[float(p.XSize), float(p.YSize), axis(p, (1, 0, 0)), axis(p, (0, 1, 0))]
+                              for p in planes]))
 """, tmp_path)
-    assert result == [[4000.0, 1500.0], [4000.0, 1500.0]]
+    expected = [([4000.0, 1500.0], [0, 1, 0], [0, 0, 1])] * 2 + [
+        # stored right points down the upright picture, stored up toward the rear
+        ([1500.0, 4000.0], [0, 0, -1], [0, 1, 0])]
+    for (size, x, y), got in zip(expected, result, strict=True):
+        assert got[:2] == size and np.allclose(got[2], x) and np.allclose(got[3], y)
 
 
 def test_a_missing_carbody_command_is_one_clear_line(tmp_path):
@@ -136,20 +150,55 @@ def test_the_macro_reconstructs_headless_and_the_document_matches_the_step_files
 
     curves = json.loads(run_cli("parts", str(out / "wireframe.step"), "--json", check=True).stdout)["curves"]
     faces = json.loads(run_cli("parts", str(out / "body.step"), "--json", check=True).stdout)["faces"]
+    width, height = Image.open(REPO / "examples" / "car.png").size
     result = run_freecad(f"""
 import json, FreeCAD
 doc = FreeCAD.openDocument({str(saved)!r})
 wire, body = doc.getObject("Wireframe"), doc.getObject("Body")
 regions = [o for o in body.Group if o.Label != "BodyShell"]
+photo = doc.getObject("Photo")
+report = json.load(open({str(out / "report.json")!r}))["fit"]
+eye = report["photo_plane"]["eye_mm"]
+inverse = photo.Placement.inverse()
+seen = {{}}
+for name, p in report["keypoints_mm"].items():
+    q = inverse.multVec(FreeCAD.Vector(*p))  # seen square to the plane (local z = 0) ...
+    if eye is not None:  # ... or from the camera's eye
+        a = inverse.multVec(FreeCAD.Vector(*eye))
+        q = a + (q - a) * (a.z / (a.z - q.z))
+    seen[name] = [(q.x / photo.XSize.Value + 0.5) * {width}, (0.5 - q.y / photo.YSize.Value) * {height}]
+# the 3D view's camera (set by the Reconstruct command): at the eye, turned as the photo, wide
+# enough to hold its four corners
+import math
+from carbody_wb import core
+camera = core.photo_camera(report["photo_plane"])
+turned = camera["rotation"].inverted()
+corners = [turned.multVec(photo.Placement.multVec(FreeCAD.Vector(sx * photo.XSize.Value / 2, sy * photo.YSize.Value / 2, 0))
+                          - camera["position"]) for sx in (-1, 1) for sy in (-1, 1)]
 print("RESULT " + json.dumps({{
-    "photo": doc.getObject("Photo") is not None,
+    "camera_right": list(camera["rotation"].multVec(FreeCAD.Vector(1, 0, 0))),
+    "camera_at_eye": (camera["position"] - FreeCAD.Vector(*report["photo_plane"]["eye_mm"])).Length,
+    "corner_angles": [math.degrees(math.atan2(abs(c.y), -c.z)) for c in corners],
+    "height_angle": math.degrees(camera["height_angle"]),
+    "photos": sum(o.TypeId == "Image::ImagePlane" for o in doc.Objects),
+    "seen_px": seen,
     "curve_labels": sorted(o.Label for o in wire.Group),
     "edges": sum(len(o.Shape.Edges) for o in wire.Group),
     "faces": sum(len(o.Shape.Faces) for o in regions),
     "valid": all(o.Shape.isValid() for o in wire.Group + body.Group),
 }}))
 """, tmp_path)
-    assert result["photo"] and result["valid"]
+    assert result["photos"] == 1 and result["valid"]
+    # the photo lined up with the fitted camera: each keypoint, seen from the camera's eye, lies
+    # on the photo's image plane where it was marked (to the fit's residual)
+    report = json.loads((out / "report.json").read_text())["fit"]
+    assert np.allclose(result["camera_right"], report["photo_plane"]["right"]) and result["camera_at_eye"] < 1e-6
+    assert max(result["corner_angles"]) < result["height_angle"] / 2 < 1.2 * max(result["corner_angles"])
+    marks = json.loads((REPO / "examples" / "car_keypoints.json").read_text())["keypoints"]
+    names = list(report["residual_px"])
+    seen = np.array([result["seen_px"][n] for n in names])
+    off = np.linalg.norm(seen - np.array([marks[n] for n in names]), axis=1)
+    assert np.allclose(off, [report["residual_px"][n] for n in names], atol=0.01)
     assert result["curve_labels"] == sorted(c["name"] for c in curves)
     assert result["edges"] == len(curves) == 125
     assert result["faces"] == len(faces)

@@ -93,6 +93,15 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--name", default=None, help="product name in the STEP file (default: image stem)")
     p.set_defaults(func=run_fit)
 
+    pp = sub.add_parser("photo-plane", help="where a photo stands in the car's frame, as JSON (for a CAD viewer)",
+                        description="The photo upright in the car's side plane, seen from the car's "
+                                    "left, as an image plane: centre, the stored picture's axes and "
+                                    "size in mm (EXIF-turned photos included). A fit's report gives "
+                                    "the plane lined up with the fitted camera (photo_plane).")
+    pp.add_argument("image", help="the photo (PNG or JPEG)")
+    pp.add_argument("--width", type=float, default=5000.0, help="the upright picture's width, mm (default 5000)")
+    pp.set_defaults(func=run_photo_plane)
+
     v = sub.add_parser("visible-keypoints", help="list the keypoints a view can see",
                        description="Keypoints visible at a view, from the wireframe geometry "
                                    "(region normals and occlusion) of the library's mean car.")
@@ -110,6 +119,21 @@ def _truth(spec: str):
     from carbody.wireframe import read_wireframe
 
     return read_wireframe(spec) if Path(spec).is_file() else load_template(spec)
+
+
+def run_photo_plane(args: argparse.Namespace) -> int:
+    import json
+    import math
+
+    from carbody.errors import FitError, ImageError
+    from carbody.fit.photo_plane import side_plane
+
+    if not (math.isfinite(args.width) and args.width > 0):
+        raise FitError(f"--width {args.width:g} mm is not a positive size")
+    if not Path(args.image).is_file():
+        raise ImageError(f"{args.image}: no such image file")
+    print(json.dumps(side_plane(args.image, args.width).as_dict()))
+    return 0
 
 
 def run_fit(args: argparse.Namespace) -> int:
@@ -155,7 +179,7 @@ def run_fit(args: argparse.Namespace) -> int:
                            focal_px=focal,
                            name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
-    report = build_report(result, truth) if (args.report or truth is not None) else None
+    report = build_report(result, truth, image=args.image) if (args.report or truth is not None) else None
 
     write_wireframe(args.output, result.wireframe, both_halves=True)
     if overlay is not None:

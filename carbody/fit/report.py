@@ -37,8 +37,10 @@ def keypoint_errors_mm(fitted: Wireframe, truth: Wireframe, at_truth_wheelbase: 
     return {k.name: float(e) for k, e in zip(topo.keypoints, d)}
 
 
-def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
-    """The report as a JSON-ready dict (see module docstring); lengths in mm, residuals in px."""
+def build_report(result, truth: Wireframe | None = None, top: int = 10, image: str | Path | None = None) -> dict:
+    """The report as a JSON-ready dict (see module docstring); lengths in mm, residuals in px.
+    ``image``: the photo's file, to say where it stands lined up with the car (``photo_plane``)."""
+    from carbody.fit.photo_plane import fitted_plane
     from carbody.fit.visibility import visible_keypoints
 
     res = result.residuals_px()
@@ -73,6 +75,9 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10) -> dict:
         "deformation_mm_max": result.deformation_mm,
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
+        # the photo as an image plane behind the car, square to the fitted camera (mm; a CAD
+        # viewer looking along the camera sees the wireframe on it)
+        "photo_plane": None if image is None else fitted_plane(result, image).as_dict(),
     }
     sd = result.keypoint_sd_mm()
     if sd is not None:

@@ -75,9 +75,25 @@ class Reconstruct(_Command):
             raise core.CarbodyWorkbenchError("load a photo and its keypoints first")
         out = QtGui.QFileDialog.getExistingDirectory(None, "Output folder")
         if out:
-            core.reconstruct(_doc(), image, keypoints, out)
+            _, _, report = core.reconstruct(_doc(), image, keypoints, out)
             FreeCAD.Console.PrintMessage(core.summary(out))
-            FreeCADGui.SendMsgToActiveView("ViewFit")
+            _look_as_the_photo(report["fit"].get("photo_plane"))
+
+
+def _look_as_the_photo(placement):
+    """Turn the 3D view to the fitted camera: the wireframe on the photo, as on the overlay."""
+    view = FreeCADGui.ActiveDocument.ActiveView
+    if placement is None:
+        view.fitAll()
+        return
+    camera = core.photo_camera(placement)
+    view.setCameraType("Orthographic" if camera["position"] is None else "Perspective")
+    view.setCameraOrientation(camera["rotation"])
+    view.fitAll()
+    if camera["position"] is not None:
+        node = view.getCameraNode()
+        node.position.setValue(*camera["position"])
+        node.heightAngle.setValue(camera["height_angle"])
 
 
 class Preferences(_Command):

@@ -6,10 +6,10 @@ names come from ``carbody parts FILE --json``, matched to the shapes FreeCAD rea
 so the import does not depend on the order a STEP reader lists things in.
 """
 import json
+import math
 import os
 import shlex
 import shutil
-import struct
 import subprocess
 
 import FreeCAD
@@ -46,36 +46,57 @@ def run_carbody(args, command=None):
     return proc
 
 
-def image_size(path):
-    """(width, height) in pixels of a PNG or JPEG file, read from its header."""
-    with open(path, "rb") as f:
-        head = f.read(26)
-        if head[:8] == b"\x89PNG\r\n\x1a\n":
-            return struct.unpack(">II", head[16:24])
-        if head[:2] == b"\xff\xd8":
-            f.seek(2)
-            while True:
-                marker = f.read(2)
-                if len(marker) < 2 or marker[0] != 0xFF:
-                    break
-                length = struct.unpack(">H", f.read(2))[0]
-                if 0xC0 <= marker[1] <= 0xCF and marker[1] not in (0xC4, 0xC8, 0xCC):
-                    h, w = struct.unpack(">xHH", f.read(5))
-                    return w, h
-                f.seek(length - 2, 1)
-    raise CarbodyWorkbenchError(f"{path}: not a PNG or JPEG image")
-
-
-def add_photo(doc, image_path, width_mm=5000.0):
-    """An image plane showing the photo in the car's side plane (yz), ``width_mm`` wide."""
-    w, h = image_size(image_path)
-    plane = doc.addObject("Image::ImagePlane", "Photo")
-    plane.ImageFile = os.path.abspath(image_path)
-    plane.XSize = width_mm
-    plane.YSize = width_mm * h / w
-    plane.Placement = FreeCAD.Placement(FreeCAD.Vector(0, 0, 0), FreeCAD.Rotation(FreeCAD.Vector(0, 1, 0), 90))
-    doc.recompute()
+def add_photo(doc, image_path, width_mm=5000.0, command=None):
+    """An image plane showing the photo upright in the car's side plane (yz), seen from the car's
+    left (nose to the left), ``width_mm`` wide; a phone photo stored on its side is turned as
+    its EXIF orientation says (``carbody photo-plane`` places it)."""
+    placement = json.loads(run_carbody(["photo-plane", os.path.abspath(image_path), "--width", f"{float(width_mm):g}"],
+                                       command).stdout)
+    plane = _new_photo(doc, image_path)
+    place_photo(plane, placement)
     return plane
+
+
+def _new_photo(doc, image_path):
+    """An image plane of the photo. The document keeps its own copy of the picture, so the file
+    it came from is kept too (``SourcePhoto``), to find the plane again."""
+    plane = doc.addObject("Image::ImagePlane", "Photo")
+    plane.addProperty("App::PropertyPath", "SourcePhoto", "carbody", "the photo file this plane shows")
+    plane.SourcePhoto = os.path.abspath(image_path)
+    plane.ImageFile = os.path.abspath(image_path)
+    return plane
+
+
+def place_photo(plane, placement):
+    """Put an image plane where ``placement`` says (``carbody photo-plane``'s JSON, or a fit
+    report's ``photo_plane``: centre, the stored picture's axes and size, mm)."""
+    x, y = FreeCAD.Vector(*placement["x_axis"]), FreeCAD.Vector(*placement["y_axis"])
+    z, c = x.cross(y), FreeCAD.Vector(*placement["centre_mm"])
+    plane.Placement = FreeCAD.Placement(FreeCAD.Matrix(x.x, y.x, z.x, c.x, x.y, y.y, z.y, c.y,
+                                                       x.z, y.z, z.z, c.z, 0, 0, 0, 1))
+    plane.XSize, plane.YSize = placement["width_mm"], placement["height_mm"]
+    plane.Document.recompute()
+
+
+def photo_camera(placement):
+    """The 3D view's camera that sees the car as the photo did (``placement`` as for
+    :func:`place_photo`): a dict with ``rotation`` (x along the upright picture's right, y up,
+    z back toward the viewer), and for a camera close by (``eye_mm`` in the placement)
+    ``position`` (its eye) and ``height_angle`` (radians, the picture's height with a margin);
+    else those two are None (orthographic: any distance along the view)."""
+    right, up = FreeCAD.Vector(*placement["right"]), FreeCAD.Vector(*placement["up"])
+    back = right.cross(up)
+    rotation = FreeCAD.Rotation(FreeCAD.Matrix(right.x, up.x, back.x, 0, right.y, up.y, back.y, 0,
+                                               right.z, up.z, back.z, 0, 0, 0, 0, 1))
+    if placement.get("eye_mm") is None:
+        return {"rotation": rotation, "position": None, "height_angle": None}
+    eye, centre = FreeCAD.Vector(*placement["eye_mm"]), FreeCAD.Vector(*placement["centre_mm"])
+    y_along_up = abs(FreeCAD.Vector(*placement["y_axis"]).dot(up)) > 0.5
+    height = placement["height_mm"] if y_along_up else placement["width_mm"]
+    # the picture's centre may sit off the camera's axis (a turned camera): reach past it
+    offset = abs((centre - eye).dot(up))
+    return {"rotation": rotation, "position": eye,
+            "height_angle": 2.0 * math.atan(1.1 * (height / 2 + offset) / abs((centre - eye).dot(back)))}
 
 
 def _nearest(centres, targets):
@@ -142,7 +163,22 @@ def reconstruct(doc, image, keypoints, out_dir, view=None, wheelbase_mm=None, co
     body = import_step_parts(doc, os.path.join(out_dir, "body.step"), "Body", command)
     with open(os.path.join(out_dir, "report.json")) as f:
         report = json.load(f)
+    line_up_photo(doc, image, report)
     return wire, body, report
+
+
+def line_up_photo(doc, image, report):
+    """Stand the photo's image plane (added if the document has none of it) where the fit
+    says: behind the car, square to the fitted camera, so that looking along it (from its eye,
+    for a camera close by) the wireframe lies on the photo. Returns the plane."""
+    placement = report["fit"].get("photo_plane")
+    if placement is None:
+        return None
+    path = os.path.abspath(image)
+    planes = [o for o in doc.Objects if o.TypeId == "Image::ImagePlane" and getattr(o, "SourcePhoto", None) == path]
+    plane = planes[0] if planes else _new_photo(doc, path)
+    place_photo(plane, placement)
+    return plane
 
 
 def summary(out_dir):
