@@ -305,6 +305,12 @@ def _by_case(rows: list[dict]) -> list[tuple[str, list[dict]]]:
     return list(out.items())
 
 
+def _default_case(rows: list[dict]) -> tuple[str | None, list[dict]]:
+    """The default method's view-known case (its label, its rows), or (None, [])."""
+    return next(((lab, rs) for lab, rs in _by_case(rows)
+                 if lab.startswith("mixture, view known") and "λ=" not in lab), (None, []))
+
+
 def case_label(r: dict) -> str:
     lab = r["method"] + ("" if r["lambda"] is None else f" λ={r['lambda']:g}")
     if r["method"] != "paper" and not r.get("deform", True):
@@ -330,11 +336,9 @@ def case_label(r: dict) -> str:
 
 def summarise(rows: list[dict]) -> str:
     out = []
-    labels = list(dict.fromkeys(case_label(r) for r in rows))
     out.append("| case | mean (mm) | mean 15°–165° | max 30° | max 150° | max all | annotated: max 30° | max 150° | azimuth within 2° | residual px | s/fit |")
     out.append("|---|---|---|---|---|---|---|---|---|---|---|")
-    for lab in labels:
-        rs = [r for r in rows if case_label(r) == lab]
+    for lab, rs in _by_case(rows):
         mean = np.mean([r["mean_mm"] for r in rs])
         mid = np.mean([r["mean_mm"] for r in rs if 0 < r["azimuth"] < 180])
         m30 = max([r["max_mm"] for r in rs if r["azimuth"] == 30], default=np.nan)
@@ -355,8 +359,7 @@ def per_car(rows: list[dict]) -> str:
     out = ["", "The paper's max (≤ 60 mm at front 30°, ≤ 55 mm at rear 30°), car by car:", "",
            "| case | cars under it at 30° | at 150° | median over cars of the max at 30° / 150° (mm) |",
            "|---|---|---|---|"]
-    for lab in dict.fromkeys(case_label(r) for r in rows):
-        rs = [r for r in rows if case_label(r) == lab]
+    for lab, rs in _by_case(rows):
         m30 = [r["max_mm"] for r in rs if r["azimuth"] == 30]
         m150 = [r["max_mm"] for r in rs if r["azimuth"] == 150]
         if not m30 or not m150 or "λ=" in lab:
@@ -376,8 +379,8 @@ def calibration(rows: list[dict]) -> str:
            "real one, per keypoint:", "",
            "| case | mean real (mm) | mean expected (mm) | median real / expected | within 1× | within 2× "
            "| rank correlation over cases |", "|---|---|---|---|---|---|---|"]
-    for lab in dict.fromkeys(case_label(r) for r in rows):
-        rs = [r for r in rows if case_label(r) == lab and r.get("expected_mm") is not None]
+    for lab, rs in _by_case(rows):
+        rs = [r for r in rs if r.get("expected_mm") is not None]
         if not rs or "λ=" in lab:
             continue
         err = np.concatenate([r["error_mm"] for r in rs])
@@ -390,10 +393,9 @@ def calibration(rows: list[dict]) -> str:
     if len(out) <= 5:
         return ""
     # where the estimate is too high or too low: the default case, view by view
-    lab = next((lab for lab in dict.fromkeys(case_label(r) for r in rows)
-                if lab.startswith("mixture, view known") and "λ=" not in lab), None)
-    if lab is not None:
-        rs = [r for r in rows if case_label(r) == lab and r.get("expected_mm") is not None]
+    lab, rs = _default_case(rows)
+    rs = [r for r in rs if r.get("expected_mm") is not None]
+    if rs:
         angles = sorted({r["azimuth"] for r in rs})
         out += ["", f"{lab}, mean real / mean expected error (mm) by view:", "",
                 "| " + " | ".join(f"{a}°" for a in angles) + " |", "|" + "---|" * len(angles),
@@ -422,9 +424,8 @@ def length_reference(rows: list[dict], target_mm: float = 25.0) -> str:
     """Pure front and rear views show no length: the default fit's error along the car on them,
     against the other templates' mean position along the car (what the library says with no
     photo), and what these two views alone leave the others of the issue's mean target."""
-    lab = next((lab for lab in dict.fromkeys(case_label(r) for r in rows)
-                if lab.startswith("mixture, view known") and "λ=" not in lab), None)
-    rs = [r for r in rows if lab is not None and case_label(r) == lab and "along_mm" in r]
+    lab, rs = _default_case(rows)
+    rs = [r for r in rs if "along_mm" in r]
     views = {r["azimuth"] for r in rs}
     if not {0, 180} <= views:
         return ""
@@ -448,8 +449,7 @@ def length_reference(rows: list[dict], target_mm: float = 25.0) -> str:
     return "\n".join(out)
 
 
-def table(rows: list[dict], label: str) -> str:
-    rs = [r for r in rows if case_label(r) == label]
+def table(label: str, rs: list[dict]) -> str:
     names = list(dict.fromkeys(r["template"] for r in rs))
     angles = sorted({r["azimuth"] for r in rs})
     out = [f"mean / max 3D keypoint error (mm), {label}", "",
@@ -634,11 +634,11 @@ def main(argv=None) -> int:
     print(per_car(rows))
     print(calibration(rows))
     print(length_reference(rows))
-    for label in dict.fromkeys(case_label(r) for r in rows):
+    for label, rs in _by_case(rows):
         if "λ=" in label:
             continue
         print()
-        print(table(rows, label))
+        print(table(label, rs))
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)
