@@ -23,10 +23,23 @@ from typing import Any, Callable
 
 import numpy as np
 
-from carbody.errors import CarbodyError, KeypointError, OutputError, SideError
+from carbody.errors import CarbodyError, KeypointError, OutputError, SideError, SurfaceError
 
 #: The stages, in order, as the progress display names them.
 STAGES = ("view", "fit", "surfaces")
+
+#: How many times the classifier's view is turned to the one the keypoints say (its other side,
+#: then its other end).
+MAX_VIEW_TURNS = 2
+
+#: Stiffer fits tried in turn when a region of the fitted wireframe cannot be surfaced (its
+#: outline crosses itself: a car far from every template, as the leave-one-out pickup seen from
+#: behind; BENCHMARKS.md "End to end"): the library's span without the local field and the
+#: deformation, then the paper's plain mix of library cars.
+SURFACE_FALLBACKS = (
+    ("the library's span alone (no local field, no deformation)", {"joint_field": False, "deform": False}),
+    ("the paper's plain mix of library cars", {"method": "paper"}),
+)
 
 
 @dataclass
@@ -44,6 +57,8 @@ class Reconstruction:
         fit: the wireframe fit (:class:`carbody.fit.FitResult`).
         body: the surfaced body (:class:`carbody.surface.Body`).
         timings_s: seconds per stage.
+        fallback: None, or why and how the fit was made stiffer to surface the body
+            (``SURFACE_FALLBACKS``): {"reason": the first fit's surface error, "fit": which fit}.
     """
 
     name: str
@@ -54,6 +69,7 @@ class Reconstruction:
     fit: Any
     body: Any
     timings_s: dict[str, float] = field(default_factory=dict)
+    fallback: dict[str, str] | None = None
 
     @property
     def wireframe(self):
@@ -109,6 +125,8 @@ class Reconstruction:
             "view": view,
             "fit": build_report(self.fit, truth, image=self.image_path),
             "surfaces": {"faces": len(self.body.faces), **shell},
+            # None, or why the fit was made stiffer and which fit the outputs are of
+            "fit_fallback": self.fallback,
             "timings_s": self.timings_s,
         }
 
@@ -141,6 +159,9 @@ class Reconstruction:
                          f"mean {fit['error_mm_at_truth_wheelbase_mean']:.1f} mm, "
                          f"max {fit['error_mm_at_truth_wheelbase_max']:.1f} mm at the true one "
                          f"({fit['truth_wheelbase_mm']:.0f} mm)")
+        if report["fit_fallback"]:
+            lines.append(f"note: the fitted wireframe could not be surfaced ({report['fit_fallback']['reason']}); "
+                         f"the wireframe and body are of a stiffer fit: {report['fit_fallback']['fit']}")
         s = report["surfaces"]
         lines.append(f"body: {s['faces']} Bezier faces in one shell, valid={s.get('valid')}, "
                      f"open only at {s.get('free_closed_loops')} closed bottom loop(s)")
@@ -290,6 +311,7 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     """
     from carbody.fit import View, fit_wireframe
     from carbody.surface import build_body
+    from carbody.view.labels import angular_difference
 
     timings: dict[str, float] = {}
     rgb, image_path, ann = _read_inputs(image, keypoints)
@@ -318,23 +340,42 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
 
     focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
 
-    def fit_at(azimuth: float):
+    def fit_at(azimuth: float, **stiffer):
         return fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                              image_size=(w, h), wheelbase_mm=wheelbase_mm,
                              camera_distance_mm=camera_distance_mm, principal_point=principal_point,
-                             focal_px=focal, reject_outliers=reject_outliers, name=name)
+                             focal_px=focal, reject_outliers=reject_outliers, name=name, **stiffer)
 
-    try:
-        fit = fit_at(azimuth)
-    except SideError as exc:
-        if source != "classifier":
-            raise
-        # The classifier took the car's one side (or end) for the other; the marks' names tell.
-        fit, source = fit_at(exc.azimuth), (f"classifier, turned to {exc.azimuth:g} deg: the keypoints' "
-                                            "names are of that view")
+    tried = [azimuth]
+    while True:
+        try:
+            fit = fit_at(azimuth)
+            break
+        except SideError as exc:
+            # The classifier took the car's one side (or end) for the other, the marks tell: a
+            # right rear three-quarter view taken for the left front one is turned twice.
+            if source == "given" or len(tried) > MAX_VIEW_TURNS or any(
+                    angular_difference(exc.azimuth, a) < 1.0 for a in tried):
+                raise
+            azimuth = exc.azimuth
+            tried.append(azimuth)
+            source = f"classifier, turned to {azimuth:.0f} deg: the keypoints' names are of that view"
     timings["fit"] = time.perf_counter() - start
 
     start = stage("surfaces")
-    body = build_body(fit.wireframe)
+    fallback = None
+    try:
+        body = build_body(fit.wireframe)
+    except SurfaceError as exc:
+        for label, stiffer in SURFACE_FALLBACKS:
+            try:
+                fit = fit_at(azimuth, **stiffer)
+                body = build_body(fit.wireframe)
+            except CarbodyError:
+                continue
+            fallback = {"reason": str(exc), "fit": label}
+            break
+        else:
+            raise exc from None
     timings["surfaces"] = time.perf_counter() - start
-    return Reconstruction(name, rgb, image_path, source, prediction, fit, body, timings)
+    return Reconstruction(name, rgb, image_path, source, prediction, fit, body, timings, fallback)

@@ -70,7 +70,7 @@ def test_a_camera_turned_to_an_off_centre_car_gets_the_photo_s_own_image_plane(l
     assert np.abs(plane.photo_pixel(car, (2000, 1000)) - result.project_points(car)).max() < 0.1
     assert plane.lineup_px < 0.05
     axis = plane.centre_mm - plane.eye_mm
-    assert np.degrees(np.arccos(abs(axis @ np.cross(plane.right, plane.up)) / np.linalg.norm(axis))) < 0.1
+    assert np.degrees(np.arccos(abs(axis @ np.cross(plane.right, plane.up)) / np.linalg.norm(axis))) < 0.5
     assert abs(plane.right @ plane.up) < 1e-3
 
 

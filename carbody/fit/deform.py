@@ -177,4 +177,23 @@ def _field_basis(reference: np.ndarray, topology: Topology, sigma: tuple[float, 
     evals, evecs = np.linalg.eigh(cov)
     evals, evecs = np.clip(evals[::-1], 0.0, None), evecs[:, ::-1]
     q = int(np.searchsorted(np.cumsum(evals) / evals.sum(), FIELD_ENERGY)) + 1
-    return evecs[:, :q] * np.sqrt(evals[:q])
+    return carried_by_curve_ends(evecs[:, :q] * np.sqrt(evals[:q]))
+
+
+def carried_by_curve_ends(basis: np.ndarray) -> np.ndarray:
+    """A displacement basis (3·P, q) whose inner poles move with their curve's end: each cubic's
+    second pole as its first, its third as its fourth.
+
+    The field is smooth, but two curves leaving a junction along one line (a cusp: the sill and
+    the wheel arch at the arch's foot) or at an acute angle (a belt line and a door edge) have
+    their poles near the junction a few centimetres apart, where a smooth field still moves
+    them differently; tilted by a few degrees the two curves cross, and the region between them
+    cannot be surfaced. Moved with their ends, the curves keep the mix's end tangents (every
+    library model's directions there) and their junctions meet as they did; the keypoints are
+    junctions, so what the marks see of the field is unchanged.
+    """
+    rows = np.arange(basis.shape[0]).reshape(-1, 4, 3)  # (curve, pole, xyz) -> row
+    out = basis.copy()
+    out[rows[:, 1]] = basis[rows[:, 0]]
+    out[rows[:, 2]] = basis[rows[:, 3]]
+    return out

@@ -242,6 +242,7 @@ class FitResult:
             misplaced as named, both fitting swapped), or None.
         solve_residual_px: (k,) the marks' residuals before the deformation (None: no
             deformation, see ``solution.residual_px``).
+        joint_field: whether the solve had the local displacement field in its prior.
     """
 
     wireframe: Wireframe
@@ -263,6 +264,7 @@ class FitResult:
     rejected_looks_like: dict[str, str] = field(default_factory=dict)
     swapped_names: tuple[str, str] | None = None
     solve_residual_px: np.ndarray | None = field(default=None, repr=False)
+    joint_field: bool = True
 
     @property
     def mm_per_unit(self) -> float:
@@ -382,7 +384,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                   prior_weight: float = DEFAULT_PRIOR_WEIGHT, refine: bool = True,
                   deform: bool | None = None, camera_distance_mm: float | str | None = None,
                   principal_point: str | tuple[float, float] = "auto", focal_px: float | None = None,
-                  reject_outliers: bool = True, name: str = "fitted car") -> FitResult:
+                  reject_outliers: bool = True, joint_field: bool = True, name: str = "fitted car") -> FitResult:
     """Fit the car's 3D wireframe to keypoints marked on one photo.
 
     Args:
@@ -404,7 +406,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         deform: after the solve, move the fit onto the annotated keypoints with a smooth
             symmetric field (:mod:`carbody.fit.deform`); default on for ``"gauss"``/``"mixture"``,
             off for ``"paper"`` (the paper's method as published). The Gaussian-prior solve's
-            own field (``JOINT_FIELD_AMPLITUDE``) is part of the solve either way.
+            own field (``JOINT_FIELD_AMPLITUDE``) is part of the solve either way, unless
+            ``joint_field`` is False.
         camera_distance_mm: None for SPEC's orthographic camera; a number for a pinhole camera
             that far from the car's centre (a photo taken from a few metres shows nearer parts
             larger; without ``wheelbase_mm`` it sizes the car: the fit finds the distance in
@@ -430,6 +433,10 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             misplaced (:func:`_outliers`), and fit a left/right pair whose names were exchanged
             with them exchanged back (Gaussian-prior methods): named in
             ``FitResult.rejected_px`` and ``FitResult.swapped_names``.
+        joint_field: the Gaussian-prior methods solve the mix with the local displacement field
+            inside the prior (default); False solves the library's span alone (stiffer: what
+            :func:`carbody.reconstruct` falls back to when a fitted region's outline crosses
+            itself).
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -459,7 +466,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     deform = (method != "paper") if deform is None else deform
     marks = dict(view=view, library=library, method=method, prior_weight=prior_weight, refine=refine,
                  camera_distance_mm=camera_distance_mm, wheelbase_mm=wheelbase_mm, name=name,
-                 principal=principal, focal_px=focal_px, deform=deform)
+                 principal=principal, focal_px=focal_px, deform=deform, joint_field=joint_field)
     result = _fit_marks(slots, uv, **marks)
     _check_end(result, said, slots, uv, marks)
     if not reject_outliers or method == "paper":
@@ -609,7 +616,8 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
             without = _fit_checked([slots[j] for j in keep], uv[keep], view=result.view, library=result.library,
                                    method=result.method, prior_weight=prior_weight, refine=False,
                                    camera_distance_mm=None if result.view.distance is None else "kept",
-                                   wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name)
+                                   wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name,
+                                   joint_field=result.joint_field)
             sol = without.solution
             point = sol.shape.reshape(-1, 3)[slot.point_index] * slot.sign
             miss = uv[i] - project(point, without.view, sol.scale, sol.offset)
@@ -642,13 +650,14 @@ def _distances_to_marks(result: FitResult, names: list[str], slots: list[Keypoin
 
 def _fit_marks(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
                prior_weight: float, refine: bool, camera_distance_mm, wheelbase_mm: float | None,
-               name: str, principal: np.ndarray | None, focal_px: float | None, deform: bool) -> FitResult:
+               name: str, principal: np.ndarray | None, focal_px: float | None, deform: bool,
+               joint_field: bool = True) -> FitResult:
     """:func:`fit_wireframe` on checked marks: the solve, the view, the camera (its distance,
     its turn toward an off-centre car), the wheelbase, and the deformation."""
     # Passes that may be refitted skip the deformation; the fit kept gets it (_deformed) at the end.
     fit = dict(slots=slots, uv=uv, view=view, library=library, method=method,
                prior_weight=prior_weight, refine=refine, camera_distance_mm=camera_distance_mm,
-               wheelbase_mm=wheelbase_mm, name=name)
+               wheelbase_mm=wheelbase_mm, name=name, joint_field=joint_field)
     by_distance = None  # the wheelbase a told distance and the perspective give
     if wheelbase_mm is not None or camera_distance_mm in (None, "auto"):
         result = _fit_checked(**fit, distance_wheelbase_mm=wheelbase_mm)
@@ -914,12 +923,12 @@ def _at_wheelbase(result: FitResult, wheelbase_mm: float) -> FitResult:
 def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library: Library, method: str,
                  prior_weight: float, refine: bool, camera_distance_mm: float | str | None,
                  wheelbase_mm: float | None, distance_wheelbase_mm: float | None, name: str,
-                 scan: bool = True) -> FitResult:
+                 scan: bool = True, joint_field: bool = True) -> FitResult:
     """:func:`fit_wireframe` on checked input, without the deformation; a distance in mm is
     read at ``distance_wheelbase_mm`` (default the library's mean wheelbase). A ``view`` that
     already has a distance (a previous fit's) starts the refinement as it is, and ``scan``
     False skips the refinement's coarse scan."""
-    model = prepared(library, method, wheelbase_mm)
+    model = prepared(library, method, wheelbase_mm, field=joint_field)
     idx = load_topology().keypoint_point_indices
 
     if method == "paper":
@@ -970,7 +979,8 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
     points = sol.shape.reshape(-1, 3) * (wheelbase_mm / NORMALISED_WHEELBASE)
     return FitResult(wireframe=Wireframe(name, points), view=refined, given_view=view, solution=sol,
                      slots=slots, uv=uv, wheelbase_mm=float(wheelbase_mm), method=method,
-                     library=library, wheelbase_from="library mix" if told is None else "told")
+                     library=library, wheelbase_from="library mix" if told is None else "told",
+                     joint_field=joint_field and method != "paper")
 
 
 #: Step (degrees) of the finite differences that measure how sharply the evidence pins a
