@@ -475,10 +475,13 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     # A mark left out, or standing out, whose left/right twin is marked too: do the two fit with
     # their names exchanged (the car's left is the viewer's right on a front view)? (A pair
     # swapped on a front or rear view bends the whole car, so its marks may not be the ones left
-    # out.) Kept when the pair then fits and the marks' median residual falls by SWAP_GAIN.
+    # out.) Kept when the pair then fits and the marks' median residual falls by SWAP_GAIN. A
+    # mark standing out by less than OUTLIER_SPREAD of the marks' spread is a click's error, not
+    # a pair seen from the car's other side: no trial (a trial is a whole fit).
     before = float(np.median(_solve_residual(result)))
+    far = OUTLIER_SPREAD * keypoint_spread(result.marks_in_fit_camera())
     best = None
-    for pair in _twin_pairs(rejected + _candidates(result), slots)[:MAX_SWAP_TRIALS]:
+    for pair in _twin_pairs(rejected + _candidates(result, far), slots)[:MAX_SWAP_TRIALS]:
         renamed = _swap_names(slots, pair)
         try:
             trial = _fit_marks(renamed, uv, **marks)
@@ -578,12 +581,12 @@ OUTLIER_SPREAD = 0.03
 MAX_OUTLIERS = 2
 
 
-def _candidates(result: FitResult) -> list[str]:
+def _candidates(result: FitResult, floor_px: float = 0.0) -> list[str]:
     """Names of marks whose residual before the deformation exceeds
-    ``OUTLIER_CANDIDATE_RATIO`` × the median, worst first."""
+    ``OUTLIER_CANDIDATE_RATIO`` × the median (and ``floor_px``), worst first."""
     residual = _solve_residual(result)
     order = np.argsort(-residual)
-    limit = OUTLIER_CANDIDATE_RATIO * float(np.median(residual))
+    limit = max(OUTLIER_CANDIDATE_RATIO * float(np.median(residual)), floor_px)
     return [result.slots[i].name for i in order if residual[i] > limit]
 
 
@@ -864,11 +867,16 @@ def _deformed(result: FitResult) -> FitResult:
             perspective_factors(np.concatenate([after.reshape(-1, 3), after.reshape(-1, 3) * MIRROR]), result.view)
         except AngleError:  # marks that would pull part of the car through the camera: not followed
             return result
-    sol.shape = after
-    moved = float(np.max(np.linalg.norm((sol.shape - before).reshape(-1, 3), axis=1)))
-    result.wireframe = Wireframe(result.wireframe.name, sol.shape.reshape(-1, 3) * result.mm_per_unit)
-    result.deformation_mm = moved * result.mm_per_unit
-    sol.residual_px = np.linalg.norm(result.reprojected() - result.uv, axis=1)
+    undeformed = result.wireframe
+    result.wireframe = Wireframe(undeformed.name, after.reshape(-1, 3) * result.mm_per_unit)
+    residual = np.linalg.norm(result.reprojected() - result.uv, axis=1)
+    if residual.mean() > np.mean(sol.residual_px):
+        # the field is solved through the camera linearised at the mix; a camera close to a car
+        # it has bent far can take the marks further away instead (the pickup from 4 m behind)
+        result.wireframe = undeformed
+        return result
+    sol.shape, sol.residual_px = after, residual
+    result.deformation_mm = float(np.max(np.linalg.norm((after - before).reshape(-1, 3), axis=1))) * result.mm_per_unit
     return result
 
 
