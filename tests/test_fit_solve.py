@@ -6,6 +6,7 @@ import pytest
 from carbody.camera import View, project
 from carbody.fit.keypoints_io import keypoint_slots
 from carbody.fit.solve import KeypointBasis, nnls_active_set, solve_simplex
+from carbody.fit import single_view
 from carbody.fit.single_view import fit_wireframe
 from carbody.fit.visibility import visible_slots
 from tests.conftest import off_centre_photo
@@ -611,3 +612,25 @@ def test_the_fitted_car_s_regions_can_all_be_surfaced(library, monkeypatch, temp
     monkeypatch.setattr(deform, "carried_by_curve_ends", lambda basis: basis)
     monkeypatch.setattr(single_view, "_PREPARED", {})
     assert region in crossed(fit_wireframe(marks, View(azimuth, 6.0), loo, camera_distance_mm="auto"))
+
+
+def test_a_collapsed_focal_length_is_not_turned_by(library, monkeypatch):
+    """The pickup left out of the library, seen from straight behind off the photo's centre,
+    told the camera's distance: the check of the car's other end fits it from the front, a car
+    bent until its own focal length (scale × distance) collapses toward zero, and turning the
+    camera by that focal length made a singular homography (a LinAlgError traceback). Such a
+    focal length is no camera's: the turn stops there, and the fit comes back, turned."""
+    from tests.conftest import off_centre_photo
+
+    t, loo, truth = _left_out(library, "Ford F-150 SuperCrew 5.5 ft")
+    wb = float(library.template_wheelbase_mm[t])
+    marks = off_centre_photo(truth, View(180, 10))
+
+    def fit():
+        return fit_wireframe(marks, View(180, 10), loo, image_size=(2000, 1000), wheelbase_mm=wb, refine=False,
+                             camera_distance_mm=2200 * wb / 1000, principal_point="centre")
+
+    assert 10 < fit().camera_turn_deg < 20  # the camera's axis is 15° off the car
+    monkeypatch.setattr(single_view, "WILD_FOCAL_SPREAD", 0.0)
+    with pytest.raises(np.linalg.LinAlgError):
+        fit()

@@ -780,6 +780,11 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
                     "end (front for rear), or the marks' front/rear names are swapped", azimuth)
 
 
+#: A focal length (pixels) under this fraction of the marks' spread is no camera's: a photo's
+#: focal length is at least about a quarter of its diagonal, and a car spans less than that.
+WILD_FOCAL_SPREAD = 0.25
+
+
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
                     principal: np.ndarray, given: View, passes: int | None = None,
                     rescan: bool = False) -> FitResult:
@@ -792,6 +797,8 @@ def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np
     for _ in range(passes or PRINCIPAL_PASSES):
         aim_px = result.project_points(np.asarray(result.view.aim) * result.mm_per_unit)
         focal = focal_px if focal_px is not None else result.solution.scale * result.view.distance
+        if not (np.isfinite(focal) and focal > WILD_FOCAL_SPREAD * keypoint_spread(uv)):
+            break  # a fit whose own focal length has collapsed (a car bent to the wrong end): keep the last
         to_car = np.append((aim_px - principal) / focal, 1.0)
         to_car /= np.linalg.norm(to_car)
         if np.degrees(np.arccos(min(1.0, float(to_car @ looking)))) < PRINCIPAL_TOLERANCE_DEG:
