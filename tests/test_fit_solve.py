@@ -631,6 +631,6 @@ def test_a_collapsed_focal_length_is_not_turned_by(library, monkeypatch):
                              camera_distance_mm=2200 * wb / 1000, principal_point="centre")
 
     assert 10 < fit().camera_turn_deg < 20  # the camera's axis is 15° off the car
-    monkeypatch.setattr(single_view, "WILD_FOCAL_SPREAD", 0.0)
+    monkeypatch.setattr(single_view, "MIN_FOCAL_DIAGONAL", 0.0)
     with pytest.raises(np.linalg.LinAlgError):
         fit()

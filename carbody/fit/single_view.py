@@ -780,9 +780,12 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
                     "end (front for rear), or the marks' front/rear names are swapped", azimuth)
 
 
-#: A focal length (pixels) under this fraction of the marks' spread is no camera's: a photo's
-#: focal length is at least about a quarter of its diagonal, and a car spans less than that.
-WILD_FOCAL_SPREAD = 0.25
+#: A focal length (pixels) under this fraction of the photo's diagonal (taken as twice the
+#: principal point's distance from the corner) is no camera's: 10 mm in 35 mm-equivalent terms,
+#: wider than the widest phone lens. A fit bent to the wrong end, or a turn that crushes the
+#: marks together, drifts there (a focal length collapsing toward 0; a camera turned 90°): the
+#: fit's own focal length is taken no shorter, a searched or told one that short is not turned by.
+MIN_FOCAL_DIAGONAL = 10.0 / 43.3
 
 
 def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np.ndarray,
@@ -796,9 +799,10 @@ def _looking_at_car(result: FitResult, focal_px: float | None, fit: dict, uv: np
     looking = np.array([0.0, 0.0, 1.0])
     for _ in range(passes or PRINCIPAL_PASSES):
         aim_px = result.project_points(np.asarray(result.view.aim) * result.mm_per_unit)
-        focal = focal_px if focal_px is not None else result.solution.scale * result.view.distance
-        if not (np.isfinite(focal) and focal > WILD_FOCAL_SPREAD * keypoint_spread(uv)):
-            break  # a fit whose own focal length has collapsed (a car bent to the wrong end): keep the last
+        least = MIN_FOCAL_DIAGONAL * 2.0 * float(np.hypot(*principal))
+        focal = focal_px if focal_px is not None else max(result.solution.scale * result.view.distance, least)
+        if not (np.isfinite(focal) and focal >= least):
+            break  # no camera's focal length: keep the last fit
         to_car = np.append((aim_px - principal) / focal, 1.0)
         to_car /= np.linalg.norm(to_car)
         if np.degrees(np.arccos(min(1.0, float(to_car @ looking)))) < PRINCIPAL_TOLERANCE_DEG:
@@ -829,7 +833,7 @@ def _best_focal(settled: FitResult, unturned: FitResult, turn: dict) -> float:
 
     def score(log_f: float) -> float:
         fit = _looking_at_car(unturned, float(np.exp(log_f)), **turn, passes=1)
-        scores[log_f] = np.inf if fit is unturned else view_score(fit.solution)  # a dropped turn
+        scores[log_f] = np.inf if fit is unturned else _photo_score(fit)  # a dropped turn
         return scores[log_f]
 
     centre, span = float(np.log(settled.focal_px)), float(np.log(FOCAL_SEARCH_RANGE))
@@ -840,7 +844,19 @@ def _best_focal(settled: FitResult, unturned: FitResult, turn: dict) -> float:
         minimize_scalar(score, bounds=(grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]),
                         method="bounded", options={"xatol": FOCAL_SEARCH_TOLERANCE})
     best = min(scores, key=scores.get)
-    return float(np.exp(best if scores[best] < view_score(settled.solution) else centre))
+    return float(np.exp(best if scores[best] < _photo_score(settled) else centre))
+
+
+def _photo_score(fit: FitResult) -> float:
+    """A turned fit's −log evidence of the marks in the photo's own pixels: the turned camera's
+    (:func:`~carbody.fit.refine.view_score`) less Σ log |det J| of the turn's homography at the
+    marks. Turns by different focal lengths stretch the pixels differently, and a wild one (a
+    camera turned 90°, the marks crushed together) would otherwise look like a perfect fit."""
+    if fit.to_photo is None:
+        return view_score(fit.solution)
+    to_turned = np.linalg.inv(fit.to_photo)
+    w = np.append(fit.uv, np.ones((len(fit.uv), 1)), axis=1) @ to_turned[2]
+    return view_score(fit.solution) - float(np.sum(np.log(abs(np.linalg.det(to_turned)) / np.abs(w) ** 3)))
 
 
 #: With the focal length unknown, the turn toward an off-centre car tries focal lengths up to
