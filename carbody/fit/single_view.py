@@ -833,7 +833,7 @@ def _best_focal(settled: FitResult, unturned: FitResult, turn: dict) -> float:
 
     def score(log_f: float) -> float:
         fit = _looking_at_car(unturned, float(np.exp(log_f)), **turn, passes=1)
-        scores[log_f] = np.inf if fit is unturned else _photo_score(fit)  # a dropped turn
+        scores[log_f] = np.inf if fit is unturned else view_score(fit.solution)  # a dropped turn
         return scores[log_f]
 
     centre, span = float(np.log(settled.focal_px)), float(np.log(FOCAL_SEARCH_RANGE))
@@ -844,19 +844,8 @@ def _best_focal(settled: FitResult, unturned: FitResult, turn: dict) -> float:
         minimize_scalar(score, bounds=(grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]),
                         method="bounded", options={"xatol": FOCAL_SEARCH_TOLERANCE})
     best = min(scores, key=scores.get)
-    return float(np.exp(best if scores[best] < _photo_score(settled) else centre))
+    return float(np.exp(best if scores[best] < view_score(settled.solution) else centre))
 
-
-def _photo_score(fit: FitResult) -> float:
-    """A turned fit's −log evidence of the marks in the photo's own pixels: the turned camera's
-    (:func:`~carbody.fit.refine.view_score`) less Σ log |det J| of the turn's homography at the
-    marks. Turns by different focal lengths stretch the pixels differently, and a wild one (a
-    camera turned 90°, the marks crushed together) would otherwise look like a perfect fit."""
-    if fit.to_photo is None:
-        return view_score(fit.solution)
-    to_turned = np.linalg.inv(fit.to_photo)
-    w = np.append(fit.uv, np.ones((len(fit.uv), 1)), axis=1) @ to_turned[2]
-    return view_score(fit.solution) - float(np.sum(np.log(abs(np.linalg.det(to_turned)) / np.abs(w) ** 3)))
 
 
 #: With the focal length unknown, the turn toward an off-centre car tries focal lengths up to
