@@ -12,7 +12,8 @@ holds), whether the classifier's class was right, and whether the body came out 
 sewn shell) or the run stopped with an error line. The classifier was trained on renders of
 some templates (not these photos): rows are split by whether it ever saw the car.
 
-Run: python benchmarks/bench_end_to_end.py [--quick] [--view-known] [--workers 2] [--json out.json]
+Run: python benchmarks/bench_end_to_end.py [--quick] [--view-known] [--loose-fields] [--workers 2]
+    [--json out.json]
 """
 from __future__ import annotations
 
@@ -57,6 +58,16 @@ def photograph(truth, view_deg: float, rng: np.random.Generator):
         u, v = scene.project(truth.control_points[slot.point_index][None] * slot.sign)[0] + rng.normal(0, NOISE_PX, 2)
         marks[name] = (float(u), float(v))
     return image, marks
+
+
+def loosen_fields(loose: bool) -> None:
+    """In a worker: ``--loose-fields`` lets the fit's smooth fields move each curve's inner
+    poles on their own again (``carried_by_curve_ends`` off), as before they kept the curves'
+    end tangents: how many bodies that costs."""
+    if loose:
+        import carbody.fit.deform as deform
+
+        deform.carried_by_curve_ends = lambda basis: basis
 
 
 def run_template(args) -> list[dict]:
@@ -167,6 +178,8 @@ def main(argv=None) -> int:
     ap.add_argument("--view-known", action="store_true", help="tell the fit the true view instead of the classifier's")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", help="write every run as JSON")
+    ap.add_argument("--loose-fields", action="store_true",
+                    help="the fit's fields move each curve's inner poles on their own (not with its ends)")
     args = ap.parse_args(argv)
     from carbody.library import load_library
     from carbody.view.predict import load_classifier
@@ -178,12 +191,13 @@ def main(argv=None) -> int:
     never_seen = set(meta["dataset"]["validation_templates"])
     seen = set(load_library().template_names) - never_seen
     start = time.perf_counter()
-    with ProcessPoolExecutor(args.workers) as pool:
+    with ProcessPoolExecutor(args.workers, initializer=loosen_fields, initargs=(args.loose_fields,)) as pool:
         rows = [r for part in pool.map(run_template, [(t, views, args.view_known) for t in templates]) for r in part]
     print(f"# End to end, each template left out of the library: {len(templates)} cars x {len(views)} views, "
           f"street photos ({SIZE[0]} x {SIZE[1]} px, camera {CAMERA_DISTANCE_MM / 1000:g} m away, "
           f"{ELEVATION_DEG:g}° up), {NOISE_PX:g} px marks, view "
-          f"{'told' if args.view_known else 'by the classifier'}, distance found, wheelbase not told; "
+          f"{'told' if args.view_known else 'by the classifier'}, distance found, wheelbase not told"
+          f"{'; fields moving inner poles on their own' if args.loose_fields else ''}; "
           f"{os.cpu_count()} cores, {args.workers} workers ({time.perf_counter() - start:.0f} s)\n")
     print(summary(rows, seen))
     print("\nBy view (all cars):\n")

@@ -87,29 +87,35 @@ class PhotoPlane:
                          upright_size[1] / 2 - local @ self.up / mm_per_px], axis=-1)
 
 
-def stored_size(image_path: str | Path) -> tuple[int, int]:
-    """(width, height) pixels of an image file as stored (before any EXIF turn).
+def read_picture(image_path: str | Path) -> tuple[tuple[int, int], int]:
+    """((width, height) pixels as stored, EXIF orientation 1–8) of an image file.
 
     Raises:
         ImageError: not an image file.
     """
     from PIL import Image
 
-    try:
-        with Image.open(image_path) as im:
-            return im.size
-    except (OSError, ValueError) as exc:
-        raise ImageError(f"{image_path}: not an image ({exc})") from None
-
-
-def place_photo(image_path: str | Path, centre_mm: np.ndarray, right: np.ndarray, up: np.ndarray,
-                mm_per_px: float, eye_mm: np.ndarray | None = None) -> PhotoPlane:
-    """The photo's plane from where its upright picture lies: centre (3,) mm, right and up (3,)
-    unit vectors, ``mm_per_px`` its scale."""
     from carbody.view.predict import exif_orientation
 
-    w, h = stored_size(image_path)
-    (xr, xu), (yr, yu) = STORED_AXES[exif_orientation(image_path)]
+    try:
+        with Image.open(image_path) as im:
+            size = im.size
+    except (OSError, ValueError) as exc:
+        raise ImageError(f"{image_path}: not an image ({exc})") from None
+    return size, exif_orientation(image_path)
+
+
+def upright_size(stored: tuple[int, int], orientation: int) -> tuple[int, int]:
+    """(width, height) of a stored picture turned upright by its EXIF orientation."""
+    return (stored[1], stored[0]) if orientation >= 5 else stored
+
+
+def place_photo(picture: tuple[tuple[int, int], int], centre_mm: np.ndarray, right: np.ndarray, up: np.ndarray,
+                mm_per_px: float, eye_mm: np.ndarray | None = None) -> PhotoPlane:
+    """The photo's plane (``picture`` from :func:`read_picture`) from where its upright picture
+    lies: centre (3,) mm, right and up (3,) unit vectors, ``mm_per_px`` its scale."""
+    (w, h), orientation = picture
+    (xr, xu), (yr, yu) = STORED_AXES[orientation]
     right, up = np.asarray(right, float), np.asarray(up, float)
     return PhotoPlane(np.asarray(centre_mm, float), xr * right + xu * up, yr * right + yu * up,
                       w * mm_per_px, h * mm_per_px, right, up, eye_mm=eye_mm)
@@ -118,12 +124,9 @@ def place_photo(image_path: str | Path, centre_mm: np.ndarray, right: np.ndarray
 def side_plane(image_path: str | Path, width_mm: float = 5000.0) -> PhotoPlane:
     """The upright photo in the car's side plane (x = 0), seen from the car's left (the nose to
     the left, as a left side view shows it), ``width_mm`` wide, centred on the front wheel."""
-    from carbody.view.predict import exif_orientation
-
-    w, h = stored_size(image_path)
-    upright_width = h if exif_orientation(image_path) >= 5 else w
-    return place_photo(image_path, np.zeros(3), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]),
-                       width_mm / upright_width)
+    picture = read_picture(image_path)
+    return place_photo(picture, np.zeros(3), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]),
+                       width_mm / upright_size(*picture)[0])
 
 
 def fitted_plane(result, image_path: str | Path) -> PhotoPlane:
@@ -137,13 +140,12 @@ def fitted_plane(result, image_path: str | Path) -> PhotoPlane:
     as seen from the camera's eye (``eye_mm``): every photo corner lies on its pixel's ray.
     """
     from carbody.camera import apply_homography, view_rotation
-    from carbody.view.predict import exif_orientation
 
     half = result.wireframe.control_points
     car = np.concatenate([half, half * [-1.0, 1.0, 1.0]])  # both halves, mm
     size = float(np.ptp(car, axis=0).max())
-    sw, sh = stored_size(image_path)
-    width, height = (sh, sw) if exif_orientation(image_path) >= 5 else (sw, sh)
+    picture = read_picture(image_path)
+    width, height = upright_size(*picture)
     view = result.view.scaled(result.mm_per_unit)
     d, r, w = view_rotation(view)
     scale, (u0, v0) = result.solution.scale / result.mm_per_unit, result.solution.offset  # px per mm
@@ -172,7 +174,7 @@ def fitted_plane(result, image_path: str | Path) -> PhotoPlane:
         axis *= np.sign(axis @ x[0]) / np.linalg.norm(axis)  # away from the eye
         x = eye + x * ((((car - eye) @ axis).max() + BEHIND_FRACTION * size) / (x[0] @ axis))
     right, up = x[1] - x[0], x[0] - x[3]
-    plane = place_photo(image_path, x.mean(axis=0), right / np.linalg.norm(right), up / np.linalg.norm(up),
+    plane = place_photo(picture, x.mean(axis=0), right / np.linalg.norm(right), up / np.linalg.norm(up),
                         np.linalg.norm(right) / width, eye_mm=eye)
     seen = plane.photo_pixel(car, (width, height))
     return replace(plane, lineup_px=float(np.sqrt(np.mean(np.sum((seen - result.project_points(car)) ** 2, axis=1)))))
