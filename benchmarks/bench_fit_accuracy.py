@@ -12,10 +12,11 @@ prior) and ``mixture`` (a Gaussian around each template, the default), the Gauss
 with the photo-matching deformation (default) and, where marked "no deform", without it.
 ``--sweep`` also scans the default method's prior weight λ on the known-view case;
 ``--elevation`` views from above; ``--distance`` photographs with a pinhole camera;
-``--other-end`` runs only the check that a view near the front or rear is not the car's other end.
+``--other-end`` runs only the check that a view near the front or rear is not the car's other end;
+``--orthographic-check`` only the check that a photo fitted as orthographic was taken from close by.
 
 Run: python benchmarks/bench_fit_accuracy.py [--quick] [--sweep] [--elevation DEG] [--distance MM]
-    [--known-only] [--other-end] [--json out.json]
+    [--known-only] [--other-end] [--orthographic-check] [--json out.json]
 """
 from __future__ import annotations
 
@@ -279,6 +280,75 @@ def other_end_table(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+#: ``--orthographic-check``: the cameras the photos are taken with (mm from the car's centre;
+#: None: orthographic, SPEC's camera).
+CHECK_DISTANCES_MM = (None, 20000.0, 10000.0, 6000.0, 4000.0)
+
+
+def run_orthographic_check(args) -> list[dict]:
+    """Template t photographed from each of ``CHECK_DISTANCES_MM`` at each angle, fitted as
+    ``carbody reconstruct --distance orthographic`` does (view given, refined; wheelbase not
+    told; asked to check) and as by default (distance found): whether the orthographic fit says
+    a camera close by fits far better, the distance it names, and both fits' 3D error at the
+    true wheelbase. ``outliers``: (n, px) marks moved per photo (a click on the wrong feature),
+    or None."""
+    t, angles, elevation, noise_px, outliers = args
+    from carbody.camera import View
+    from carbody.fit.single_view import fit_wireframe
+
+    name, loo, truth, wb, idx = left_out(t)
+    rng = np.random.default_rng(3000 + t)
+    rows = []
+    for distance_mm in CHECK_DISTANCES_MM:
+        for azimuth in angles:
+            distance = None if distance_mm is None else distance_mm * 1000.0 / wb
+            kps, size, _ = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px)
+            kps, moved = misplace(kps, size, *outliers, rng) if outliers else (kps, [])
+            row = {"template": name, "azimuth": azimuth, "distance_mm": distance_mm, "moved": moved}
+            for camera, kw in (("orthographic", {"check_orthographic": True}), ("auto", {"camera_distance_mm": "auto"})):
+                t0 = time.perf_counter()
+                res = fit_wireframe(kps, View(azimuth, elevation), loo, image_size=size, **kw)
+                row[f"{camera}_seconds"] = time.perf_counter() - t0
+                err = np.linalg.norm(res.wireframe.control_points[idx] * wb / res.wheelbase_mm
+                                     - truth[idx] * wb / 1000, axis=1)
+                row[f"{camera}_mean_mm"] = float(err.mean())
+                if camera == "orthographic":
+                    row["closer_camera"] = res.closer_camera
+                    row["check"] = res.orthographic_check
+            rows.append(row)
+    return rows
+
+
+def orthographic_check_table(rows: list[dict]) -> str:
+    """``--orthographic-check``: per camera, how many orthographic fits said a camera close by,
+    the distances they named, and the two fits' mean 3D error."""
+    out = ["| photo taken from | fits | said a camera close by fits far better | distance it named: median "
+           "(5–95 %) | 3D error fitted as orthographic, mm: said / not said | distance found (default), mm "
+           "| −log evidence gained per coordinate, max when not said | s/fit orthographic + check |",
+           "|---|---|---|---|---|---|---|---|"]
+    for distance_mm in CHECK_DISTANCES_MM:
+        rs = [r for r in rows if r["distance_mm"] == distance_mm]
+        said = [r for r in rs if r["closer_camera"]]
+        quiet = [r for r in rs if not r["closer_camera"]]
+        named = np.array([r["closer_camera"]["camera_distance_mm"] for r in said]) / 1000
+        where = (f"{np.median(named):.1f} m ({np.percentile(named, 5):.1f}–{np.percentile(named, 95):.1f})"
+                 if len(said) else "–")
+
+        def mean(group: list[dict], key: str) -> str:
+            return f"{np.mean([r[key] for r in group]):.1f}" if group else "–"
+
+        def max_gain(group: list[dict]) -> str:
+            gains = [r["check"]["evidence_gain_per_coordinate"] for r in group if r["check"]]
+            return f"{max(gains):.2f}" if gains else "–"
+
+        label = "far away (orthographic)" if distance_mm is None else f"{distance_mm / 1000:g} m"
+        out.append(f"| {label} | {len(rs)} | {len(said)} | {where} | {mean(said, 'orthographic_mean_mm')} / "
+                   f"{mean(quiet, 'orthographic_mean_mm')} | {mean(rs, 'auto_mean_mm')} "
+                   f"| {max_gain(quiet)} "
+                   f"| {np.median([r['orthographic_seconds'] for r in rs]):.3f} |")
+    return "\n".join(out)
+
+
 def rejections(rows: list[dict]) -> str:
     """Marks the fits left out as misplaced, per case: how many fits left any out, how many marks,
     and how many of those were the ones moved (``--outliers``)."""
@@ -509,6 +579,10 @@ def main(argv=None) -> int:
     ap.add_argument("--other-end", action="store_true",
                     help="only the other-end check: each view within END_CHECK_DEG of the front or "
                          "rear fitted told its true view and told the car's other end (180° − θ)")
+    ap.add_argument("--orthographic-check", action="store_true",
+                    help="only the check that a photo fitted as orthographic was taken from close by: "
+                         "each car photographed from afar and from 20, 10, 6 and 4 m, fitted as "
+                         "orthographic (asked to check) and finding the distance")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -548,6 +622,20 @@ def main(argv=None) -> int:
               f"range of the front or rear, elevation {args.elevation:g}°, {args.noise:g} px noise "
               f"({time.perf_counter() - t0:.0f} s)\n")
         print(other_end_table(rows))
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(rows, f, indent=1)
+        return 0
+    if args.orthographic_check:
+        t0 = time.perf_counter()
+        with ProcessPoolExecutor(args.workers) as pool:
+            rows = [r for part in pool.map(run_orthographic_check, [(t, angles, args.elevation, args.noise, outliers)
+                                                                       for t in templates]) for r in part]
+        print(f"# Photos fitted as orthographic, leave-one-out: {len(templates)} templates x {len(angles)} "
+              f"angles, elevation {args.elevation:g}° (given, refined), wheelbase not told, "
+              f"{args.noise:g} px noise{f', {outliers[0]} mark(s) a view moved {outliers[1]:g} px' if outliers else ''} "
+              f"({time.perf_counter() - t0:.0f} s)\n")
+        print(orthographic_check_table(rows))
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(rows, f, indent=1)

@@ -145,11 +145,13 @@ class Reconstruction:
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({fit['wheelbase_from']})",
         ]
-        from carbody.fit.report import expected_error_line, marks_notes
+        from carbody.fit.report import closer_camera_line, expected_error_line, marks_notes
 
         if "expected_error_mm" in fit:
             lines.append(expected_error_line(fit["expected_error_mm"]))
         lines += marks_notes(fit["rejected_keypoints"], fit["rejected_looks_like"], fit["swapped_keypoints"])
+        if (fit["orthographic_check"] or {}).get("closer_camera"):
+            lines.append("note: " + closer_camera_line(fit["orthographic_check"]))
         if fit["suspect_keypoints"]:
             lines.append("the fitted car passes far from these marks (check them): "
                          + ", ".join(f"{n} ({fit['residual_px'][n]:.0f} px)" for n in fit["suspect_keypoints"]))
@@ -344,7 +346,8 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
         return fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                              image_size=(w, h), wheelbase_mm=wheelbase_mm,
                              camera_distance_mm=camera_distance_mm, principal_point=principal_point,
-                             focal_px=focal, reject_outliers=reject_outliers, name=name, **stiffer)
+                             focal_px=focal, reject_outliers=reject_outliers, check_orthographic=True,
+                             name=name, **stiffer)
 
     tried = [azimuth]
     while True:

@@ -229,3 +229,18 @@ def test_fit_with_a_camera_distance_reports_it(photo):
                    "--distance", "60000", "-o", str(out / "car.step"), "--report", str(out / "r.json"), check=True)
     assert json.loads((out / "r.json").read_text())["camera_distance_mm"] == pytest.approx(60_000, rel=0.01)
     assert "camera 60" in proc.stdout and "(library mix)" in proc.stdout
+
+
+def test_a_close_photo_fitted_as_orthographic_says_so(tmp_path):
+    """The shipped example was taken from 7 m: told ``--distance orthographic`` the fit does as
+    asked, but the note and the report say a camera ~7 m away fits the marks far better."""
+    from tests.conftest import REPO
+
+    proc = run_cli("fit", str(REPO / "examples" / "car.png"), "--keypoints",
+                   str(REPO / "examples" / "car_keypoints.json"), "--view", "30", "--distance", "orthographic",
+                   "-o", str(tmp_path / "car.step"), "--report", str(tmp_path / "r.json"), check=True)
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["camera_distance_mm"] is None
+    check = rep["orthographic_check"]
+    assert check["closer_camera"] and check["camera_distance_mm"] == pytest.approx(7000, rel=0.15)
+    assert "looks taken from close by" in proc.stdout and "--distance auto" in proc.stdout

@@ -498,6 +498,32 @@ def test_photo_from_a_few_metres_needs_the_pinhole_camera(library, topology):
     assert fixed.view.azimuth == 30 and fixed.view.distance == pytest.approx(2200.0, rel=0.15)
 
 
+@pytest.mark.parametrize("template", ["Volvo V60", "Mazda MX-5 ND"])
+def test_an_orthographic_fit_of_a_close_photo_says_a_camera_close_by_fits(library, template):
+    """A left-out car photographed from 2.2 wheelbases (~6 m) and fitted as if from afar, as
+    asked: the fit is kept, but says the marks fit a camera close by far better and how far;
+    the same car's orthographic picture says nothing, and neither does a fit not asked to check."""
+    from carbody.fit.report import build_report
+    from carbody.fit.single_view import CLOSER_CAMERA_EVIDENCE, CLOSER_CAMERA_GAIN
+
+    t, loo, truth = _left_out(library, template)
+    wb = float(library.template_wheelbase_mm[t])
+    close = _pinhole_observe(truth, View(30, 10), 2200.0, noise=1.0)
+    checked = fit_wireframe(close, View(30, 10), loo, wheelbase_mm=wb, check_orthographic=True)
+    assert checked.view.distance is None  # still the orthographic fit asked for
+    found = checked.closer_camera
+    assert found is not None and found["camera_distance_mm"] == pytest.approx(2.2 * wb, rel=0.2)
+    assert (found["residual_px_mean"] < CLOSER_CAMERA_GAIN * found["orthographic_residual_px_mean"]
+            or found["evidence_gain_per_coordinate"] > CLOSER_CAMERA_EVIDENCE)
+    assert build_report(checked)["orthographic_check"] == found
+    assert fit_wireframe(close, View(30, 10), loo, wheelbase_mm=wb).orthographic_check is None
+    slots, uv = _observe(truth, View(30, 10), noise=1.0)
+    far = fit_wireframe({s.name: tuple(p) for s, p in zip(slots, uv)}, View(30, 10), loo, wheelbase_mm=wb,
+                        check_orthographic=True)
+    assert far.closer_camera is None and far.orthographic_check["closer_camera"] is False
+    assert far.orthographic_check["evidence_gain_per_coordinate"] < CLOSER_CAMERA_EVIDENCE
+
+
 def test_a_rough_scan_ranks_the_grid_and_the_full_solve_answers():
     """refine_view's ``scan_at`` (a pinhole view's single Newton round) ranks the coarse grid
     only: the continuous search and the returned solution are the full solve's."""

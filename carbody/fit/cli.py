@@ -141,7 +141,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.camera import View, read_view
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
-    from carbody.fit.report import build_report, draw_error_chart, expected_error_line, marks_notes, write_json
+    from carbody.fit.report import build_report, closer_camera_line, draw_error_chart, expected_error_line, marks_notes, write_json
     from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
@@ -176,7 +176,7 @@ def run_fit(args: argparse.Namespace) -> int:
                            method=args.method, refine=not args.no_refine,
                            deform=False if args.no_deform else None, reject_outliers=not args.keep_marks,
                            camera_distance_mm=distance, principal_point=args.principal_point,
-                           focal_px=focal,
+                           focal_px=focal, check_orthographic=True,
                            name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
     report = build_report(result, truth, image=args.image) if (args.report or truth is not None) else None
@@ -209,6 +209,8 @@ def run_fit(args: argparse.Namespace) -> int:
         print(expected_error_line(expected))
     for line in marks_notes(result.rejected_px, result.rejected_looks_like, result.swapped_names):
         print("note: " + line)
+    if result.closer_camera:
+        print("note: " + closer_camera_line(result.closer_camera))
     suspects = result.suspect_keypoints()
     if suspects:
         res = result.residuals_px()

@@ -78,6 +78,9 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         # the photo as an image plane behind the car, square to the fitted camera (mm; a CAD
         # viewer looking along the camera sees the wireframe on it)
         "photo_plane": None if image is None else fitted_plane(result, image).as_dict(),
+        # an orthographic fit asked to check: its marks fitted with the camera's distance found
+        # (closer_camera: that camera fits them far better), or None
+        "orthographic_check": result.orthographic_check,
     }
     sd = result.keypoint_sd_mm()
     if sd is not None:
@@ -117,6 +120,16 @@ def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], swapp
             + (f"; where it puts {looks_like[n]}" if n in looks_like else "") + ")"
             for n, px in rejected_px.items()) + ": check those marks")
     return lines
+
+
+def closer_camera_line(closer: dict) -> str:
+    """One line for a person: an orthographic fit's marks show a camera close by (the
+    report's ``orthographic_check`` when its ``closer_camera`` is true)."""
+    return (f"the photo looks taken from close by: a camera {closer['camera_distance_mm'] / 1000:.1f} m from the "
+            f"car fits the marks far better than a distant one (the library's mix misses them by "
+            f"{closer['residual_px_mean']:.1f} px on average against {closer['orthographic_residual_px_mean']:.1f} px, "
+            "with a likelier car and view); fitted as orthographic the car comes out distorted: "
+            "--distance auto finds the camera")
 
 
 def expected_error_line(expected_mm: dict[str, float]) -> str:

@@ -243,6 +243,12 @@ class FitResult:
         solve_residual_px: (k,) the marks' residuals before the deformation (None: no
             deformation, see ``solution.residual_px``).
         joint_field: whether the solve had the local displacement field in its prior.
+        orthographic_check: an orthographic fit asked to check (``check_orthographic``): its
+            marks fitted with the camera's distance found, against it (:func:`_orthographic_check`:
+            ``camera_distance_mm`` found, ``residual_px_mean`` of that fit and
+            ``orthographic_residual_px_mean``, both before the deformation,
+            ``evidence_gain_per_coordinate``, and ``closer_camera``: whether that camera fits
+            them far better); else None. ``closer_camera`` (property): that check when it says so.
     """
 
     wireframe: Wireframe
@@ -265,6 +271,14 @@ class FitResult:
     swapped_names: tuple[str, str] | None = None
     solve_residual_px: np.ndarray | None = field(default=None, repr=False)
     joint_field: bool = True
+    orthographic_check: dict | None = None
+
+    @property
+    def closer_camera(self) -> dict | None:
+        """The orthographic check (``orthographic_check``) when a camera close by fits the marks
+        far better, else None."""
+        check = self.orthographic_check
+        return check if check is not None and check["closer_camera"] else None
 
     @property
     def mm_per_unit(self) -> float:
@@ -384,7 +398,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
                   prior_weight: float = DEFAULT_PRIOR_WEIGHT, refine: bool = True,
                   deform: bool | None = None, camera_distance_mm: float | str | None = None,
                   principal_point: str | tuple[float, float] = "auto", focal_px: float | None = None,
-                  reject_outliers: bool = True, joint_field: bool = True, name: str = "fitted car") -> FitResult:
+                  reject_outliers: bool = True, joint_field: bool = True, check_orthographic: bool = False,
+                  name: str = "fitted car") -> FitResult:
     """Fit the car's 3D wireframe to keypoints marked on one photo.
 
     Args:
@@ -437,6 +452,11 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             inside the prior (default); False solves the library's span alone (stiffer: what
             :func:`carbody.reconstruct` falls back to when a fitted region's outline crosses
             itself).
+        check_orthographic: with the orthographic camera (``camera_distance_mm`` None), also
+            fit the marks with the distance found (``FitResult.orthographic_check``) and say in
+            ``FitResult.closer_camera`` when a camera close by fits them far better (a photo from
+            a few metres fitted as if from afar gives a distorted car; :func:`_orthographic_check`).
+            The fit itself is unchanged.
         name: the car's name (STEP product).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
@@ -470,7 +490,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     result = _fit_marks(slots, uv, **marks)
     _check_end(result, said, slots, uv, marks)
     if not reject_outliers or method == "paper":
-        return result
+        return _checked_orthographic(result, marks) if check_orthographic else result
     rejected, swapped = _outliers(result, prior_weight), None
     # A mark left out, or standing out, whose left/right twin is marked too: do the two fit with
     # their names exchanged (the car's left is the viewer's right on a front view)? (A pair
@@ -499,13 +519,59 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             without = _fit_marks([slots[i] for i in keep], uv[keep], **marks)
         except (FitError, AngleError):  # the rest alone pin nothing down: keep every mark
             result.swapped_names = swapped
-            return result
+            return _checked_orthographic(result, marks) if check_orthographic else result
         result = without
         result.rejected_px = {n: float(e) for n, e in zip(rejected, _distances_to_marks(result, rejected, slots, uv))}
         result.rejected_uv = {s.name: (float(p[0]), float(p[1])) for s, p in zip(slots, uv) if s.name in rejected}
         result.rejected_looks_like = _looks_like(result, result.rejected_uv)
     result.swapped_names = swapped
+    return _checked_orthographic(result, marks) if check_orthographic else result
+
+
+#: An orthographic fit's marks are said to show a camera close by when the fit with the distance
+#: found leaves them, before either deformation, at most this fraction of the orthographic
+#: mean residual …
+CLOSER_CAMERA_GAIN = 0.6
+
+#: … or its −log evidence per marked coordinate is lower by more than this (BENCHMARKS.md: at
+#: most 0.26 on the leave-one-out benchmark's orthographic pictures): a level front view from a
+#: few metres is fitted orthographic to ~1 px, but by a car seen from 60° above.
+CLOSER_CAMERA_EVIDENCE = 1.0
+
+
+def _checked_orthographic(result: FitResult, marks: dict) -> FitResult:
+    """``result`` with its ``orthographic_check`` when it is orthographic."""
+    if marks["camera_distance_mm"] is None:
+        result.orthographic_check = _orthographic_check(result, marks)
     return result
+
+
+def _orthographic_check(result: FitResult, marks: dict) -> dict | None:
+    """Fit an orthographic result's marks (those it kept) with the camera's distance found, from
+    the given view (as ``camera_distance_mm="auto"`` would): that camera's distance (None: far
+    away), both mean residuals (before the deformation), how much likelier its fit is (−log
+    evidence per coordinate; None for the paper's solve) and whether it fits them far better
+    (``CLOSER_CAMERA_GAIN``, ``CLOSER_CAMERA_EVIDENCE``); None when no car fits them so. A photo
+    from a few metres shows the car's near end larger than its far end, which no orthographic
+    view of any car does: fitted as if from afar, its marks stay pixels off, or the view runs
+    tens of degrees astray to bend a car onto them, and the car comes out distorted
+    (BENCHMARKS.md: ``--orthographic-check``)."""
+    fit = dict(slots=result.slots, uv=result.uv, view=marks["view"], library=marks["library"], method=marks["method"],
+               prior_weight=marks["prior_weight"], refine=marks["refine"], camera_distance_mm="auto",
+               wheelbase_mm=marks["wheelbase_mm"], name=marks["name"], joint_field=marks["joint_field"])
+    try:
+        near = _fit_checked(**fit, distance_wheelbase_mm=marks["wheelbase_mm"])
+    except (FitError, AngleError):
+        return None
+    far, close = float(np.mean(_solve_residual(result))), float(np.mean(near.solution.residual_px))
+    gain = None
+    if result.solution.evidence is not None and near.solution.evidence is not None:
+        gain = float(result.solution.evidence - near.solution.evidence) / (2 * len(result.slots))
+    closer = near.view.distance is not None and (
+        close < CLOSER_CAMERA_GAIN * far or (gain is not None and gain > CLOSER_CAMERA_EVIDENCE))
+    return {"camera_distance_mm": near.camera_distance_mm, "residual_px_mean": close,
+            "orthographic_residual_px_mean": far, "evidence_gain_per_coordinate": gain,
+            "closer_camera": bool(closer)}
 
 
 #: Left/right pairs of marks tried with their names exchanged, at most …
