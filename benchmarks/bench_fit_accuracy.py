@@ -324,8 +324,8 @@ def orthographic_check_table(rows: list[dict]) -> str:
     the distances they named, and the two fits' mean 3D error."""
     out = ["| photo taken from | fits | said a camera close by fits far better | distance it named: median "
            "(5–95 %) | 3D error fitted as orthographic, mm: said / not said | distance found (default), mm "
-           "| −log evidence gained per coordinate, max when not said | s/fit orthographic + check |",
-           "|---|---|---|---|---|---|---|---|"]
+           "| −log evidence gained per coordinate, max when not said | not said, by view | s/fit orthographic + check |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for distance_mm in CHECK_DISTANCES_MM:
         rs = [r for r in rows if r["distance_mm"] == distance_mm]
         said = [r for r in rs if r["closer_camera"]]
@@ -337,6 +337,10 @@ def orthographic_check_table(rows: list[dict]) -> str:
         def mean(group: list[dict], key: str) -> str:
             return f"{np.mean([r[key] for r in group]):.1f}" if group else "–"
 
+        def by_view(group: list[dict]) -> str:
+            views = sorted({r["azimuth"] for r in group})
+            return ", ".join(f"{v}° ×{sum(r['azimuth'] == v for r in group)}" for v in views) or "–"
+
         def max_gain(group: list[dict]) -> str:
             gains = [r["check"]["evidence_gain_per_coordinate"] for r in group if r["check"]]
             return f"{max(gains):.2f}" if gains else "–"
@@ -344,7 +348,7 @@ def orthographic_check_table(rows: list[dict]) -> str:
         label = "far away (orthographic)" if distance_mm is None else f"{distance_mm / 1000:g} m"
         out.append(f"| {label} | {len(rs)} | {len(said)} | {where} | {mean(said, 'orthographic_mean_mm')} / "
                    f"{mean(quiet, 'orthographic_mean_mm')} | {mean(rs, 'auto_mean_mm')} "
-                   f"| {max_gain(quiet)} "
+                   f"| {max_gain(quiet)} | {by_view(quiet)} "
                    f"| {np.median([r['orthographic_seconds'] for r in rs]):.3f} |")
     return "\n".join(out)
 
