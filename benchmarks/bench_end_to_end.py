@@ -12,7 +12,7 @@ holds), whether the classifier's class was right, and whether the body came out 
 sewn shell) or the run stopped with an error line. The classifier was trained on renders of
 some templates (not these photos): rows are split by whether it ever saw the car.
 
-Run: python benchmarks/bench_end_to_end.py [--quick] [--view-known] [--loose-fields] [--workers 2]
+Run: python benchmarks/bench_end_to_end.py [--quick] [--view-known] [--loose-fields] [--no-blend] [--workers 2]
     [--json out.json]
 """
 from __future__ import annotations
@@ -60,10 +60,15 @@ def photograph(truth, view_deg: float, rng: np.random.Generator):
     return image, marks
 
 
-def loosen_fields(loose: bool) -> None:
+def set_up_worker(loose: bool, blend: bool) -> None:
     """In a worker: ``--loose-fields`` lets the fit's smooth fields move each curve's inner
     poles on their own again (``carried_by_curve_ends`` off), as before they kept the curves'
-    end tangents: how many bodies that costs."""
+    end tangents: how many bodies that costs; ``--no-blend`` keeps a stiffer refit as it is
+    (``BLEND_HALVINGS`` 0), as before it was blended back toward the fit."""
+    if not blend:
+        import carbody.pipeline as pipeline
+
+        pipeline.BLEND_HALVINGS = 0
     if loose:
         import carbody.fit.deform as deform
 
@@ -114,6 +119,7 @@ def run_template(args) -> list[dict]:
                    camera_mm=result.fit.camera_distance_mm,
                    shell_valid=bool(shell.get("valid", False)), faces=len(result.body.faces),
                    fallback=None if result.fallback is None else result.fallback["fit"],
+                   share_of_fit=None if result.fallback is None else result.fallback["share_of_fit"],
                    view_source=result.view_source)
         rows.append(row)
     return rows
@@ -168,8 +174,8 @@ def failures(rows: list[dict]) -> str:
 
 def fallbacks(rows: list[dict]) -> str:
     made = [r for r in rows if r.get("fallback")]
-    return "\n".join(f"- {r['template']} at {r['view']}°: {r['fallback']} ({r['mean_mm']:.0f} mm)"
-                     for r in made) or "- none"
+    return "\n".join(f"- {r['template']} at {r['view']}°: {r['fallback']}, {r['share_of_fit']:.0%} of the fit "
+                     f"blended back ({r['mean_mm']:.0f} mm)" for r in made) or "- none"
 
 
 def main(argv=None) -> int:
@@ -180,6 +186,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="write every run as JSON")
     ap.add_argument("--loose-fields", action="store_true",
                     help="the fit's fields move each curve's inner poles on their own (not with its ends)")
+    ap.add_argument("--no-blend", action="store_true",
+                    help="a stiffer refit is not blended back toward the fit")
     args = ap.parse_args(argv)
     from carbody.library import load_library
     from carbody.view.predict import load_classifier
@@ -191,13 +199,14 @@ def main(argv=None) -> int:
     never_seen = set(meta["dataset"]["validation_templates"])
     seen = set(load_library().template_names) - never_seen
     start = time.perf_counter()
-    with ProcessPoolExecutor(args.workers, initializer=loosen_fields, initargs=(args.loose_fields,)) as pool:
+    with ProcessPoolExecutor(args.workers, initializer=set_up_worker, initargs=(args.loose_fields, not args.no_blend)) as pool:
         rows = [r for part in pool.map(run_template, [(t, views, args.view_known) for t in templates]) for r in part]
     print(f"# End to end, each template left out of the library: {len(templates)} cars x {len(views)} views, "
           f"street photos ({SIZE[0]} x {SIZE[1]} px, camera {CAMERA_DISTANCE_MM / 1000:g} m away, "
           f"{ELEVATION_DEG:g}° up), {NOISE_PX:g} px marks, view "
           f"{'told' if args.view_known else 'by the classifier'}, distance found, wheelbase not told"
-          f"{'; fields moving inner poles on their own' if args.loose_fields else ''}; "
+          f"{'; fields moving inner poles on their own' if args.loose_fields else ''}"
+          f"{'; stiffer refits not blended back' if args.no_blend else ''}; "
           f"{os.cpu_count()} cores, {args.workers} workers ({time.perf_counter() - start:.0f} s)\n")
     print(summary(rows, seen))
     print("\nBy view (all cars):\n")

@@ -35,11 +35,17 @@ MAX_VIEW_TURNS = 2
 #: Stiffer fits tried in turn when a region of the fitted wireframe cannot be surfaced (its
 #: outline crosses itself: a car far from every template, as the leave-one-out pickup seen from
 #: behind; BENCHMARKS.md "End to end"): the library's span without the local field and the
-#: deformation, then the paper's plain mix of library cars.
+#: deformation, then the paper's plain mix of library cars; the first that surfaces is blended
+#: back toward the fit as far as its body still surfaces (:func:`_blended_toward`).
 SURFACE_FALLBACKS = (
     ("the library's span alone (no local field, no deformation)", {"joint_field": False, "deform": False}),
     ("the paper's plain mix of library cars", {"method": "paper"}),
 )
+
+#: A stiffer fit that surfaces is then blended back toward the fit (the same car frame, the
+#: fit's camera): the largest share of the fit whose body still surfaces, found by this many
+#: halvings (a share to 1/8; each a body build).
+BLEND_HALVINGS = 3
 
 
 @dataclass
@@ -58,7 +64,9 @@ class Reconstruction:
         body: the surfaced body (:class:`carbody.surface.Body`).
         timings_s: seconds per stage.
         fallback: None, or why and how the fit was made stiffer to surface the body
-            (``SURFACE_FALLBACKS``): {"reason": the first fit's surface error, "fit": which fit}.
+            (``SURFACE_FALLBACKS``): {"reason": the first fit's surface error, "fit": which
+            stiffer fit, "share_of_fit": how much of the first fit is blended back into it,
+            0–1 (``BLEND_HALVINGS``)}.
     """
 
     name: str
@@ -162,8 +170,9 @@ class Reconstruction:
                          f"max {fit['error_mm_at_truth_wheelbase_max']:.1f} mm at the true one "
                          f"({fit['truth_wheelbase_mm']:.0f} mm)")
         if report["fit_fallback"]:
-            lines.append(f"note: the fitted wireframe could not be surfaced ({report['fit_fallback']['reason']}); "
-                         f"the wireframe and body are of a stiffer fit: {report['fit_fallback']['fit']}")
+            fallback = report["fit_fallback"]
+            lines.append(f"note: the fitted wireframe could not be surfaced ({fallback['reason']}); the wireframe "
+                         f"and body are {fallback['share_of_fit']:.0%} of it blended with a stiffer fit: {fallback['fit']}")
         s = report["surfaces"]
         lines.append(f"body: {s['faces']} Bezier faces in one shell, valid={s.get('valid')}, "
                      f"open only at {s.get('free_closed_loops')} closed bottom loop(s)")
@@ -372,13 +381,44 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     except SurfaceError as exc:
         for label, stiffer in SURFACE_FALLBACKS:
             try:
-                fit = fit_at(azimuth, **stiffer)
-                body = build_body(fit.wireframe)
+                stiff = fit_at(azimuth, **stiffer)
+                body = build_body(stiff.wireframe)
             except CarbodyError:
                 continue
-            fallback = {"reason": str(exc), "fit": label}
+            fit, body, share = _blended_toward(fit, stiff, body)
+            fallback = {"reason": str(exc), "fit": label, "share_of_fit": share}
             break
         else:
             raise exc from None
     timings["surfaces"] = time.perf_counter() - start
     return Reconstruction(name, rgb, image_path, source, prediction, fit, body, timings, fallback)
+
+
+def _blended_toward(fit, stiff, stiff_body):
+    """(fit, body, share): the largest share of ``fit`` blended with ``stiff`` (control points in
+    the car frame, and wheelbases) whose body still surfaces (``BLEND_HALVINGS``), seen by the
+    camera of either that puts it nearer the marks; ``stiff`` itself (share 0) when none does. Crossing is gradual in the
+    share, so most of the fit's match to the marks is kept where only a corner of it crossed."""
+    from dataclasses import replace
+
+    from carbody.surface import build_body
+    from carbody.wireframe import Wireframe
+
+    a = fit.wireframe.control_points / fit.wheelbase_mm
+    b = stiff.wireframe.control_points / stiff.wheelbase_mm
+    low, high, best = 0.0, 1.0, (stiff, stiff_body)
+    for _ in range(BLEND_HALVINGS):
+        share = (low + high) / 2
+        wheelbase = share * fit.wheelbase_mm + (1.0 - share) * stiff.wheelbase_mm
+        wire = Wireframe(fit.wireframe.name, (share * a + (1.0 - share) * b) * wheelbase)
+        try:
+            body = build_body(wire)
+        except SurfaceError:
+            high = share
+            continue
+        # the camera of the fit or the stiffer one, whichever puts the blend nearer the marks
+        seen = [replace(f, wireframe=wire, wheelbase_mm=wheelbase, deformation_mm=share * fit.deformation_mm)
+                for f in (fit, stiff)]
+        low, best = share, (min(seen, key=lambda f: np.mean(list(f.residuals_px().values()))), body)
+    return best[0], best[1], low
+
