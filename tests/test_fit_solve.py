@@ -605,6 +605,26 @@ def test_a_view_given_for_the_car_s_other_end_is_refused(library, template):
         assert refused.value.azimuth == azimuth
 
 
+def test_a_view_told_half_a_turn_off_is_refused_naming_the_photo_s_view(library):
+    """The left-out roadster photographed from 7 m, 15° off its rear on its right (195°), told
+    15° (a classifier's half-turn mistake): the few flank marks do not give the side away, the
+    fit at 15° is hopeless, and of the other end (165°) and the other end from the other side
+    (195°) the marks fit 195° far better: the refusal names it, so one turn mends the view."""
+    from carbody.errors import SideError
+    from carbody.fit.visibility import visible_slots
+
+    _, loo, truth = _left_out(library, "Mazda MX-5 ND")
+    both = np.concatenate([truth, truth * [-1, 1, 1]])
+    camera = View(195, 6, 0.0, 1900.0, tuple((both.min(axis=0) + both.max(axis=0)) / 2))
+    slots = visible_slots(camera, truth)
+    uv = project(np.array([truth[s.point_index] * s.sign for s in slots]), camera, 0.35, (500.0, 320.0))
+    marks = {s.name: tuple(p) for s, p in zip(slots, uv + np.random.default_rng(0).normal(0, 1.0, uv.shape))}
+    with pytest.raises(SideError, match="seen from its other side") as refused:
+        fit_wireframe(marks, View(15, 6), loo, camera_distance_mm="auto")
+    assert refused.value.azimuth == 195
+    assert abs(fit_wireframe(marks, View(195, 6), loo, camera_distance_mm="auto").view.azimuth - 195) < 3
+
+
 @pytest.mark.parametrize("template, azimuth, region", [("Ford Mustang S550", 45, "front_wheel_arch"),
                                                        ("Chrysler Pacifica", 15, "rear_wheel_arch"),
                                                        ("Toyota RAV4 XA50", 45, "rear_wheel_arch")])

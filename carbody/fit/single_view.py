@@ -818,8 +818,9 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
                marks: dict) -> None:
     """Refuse a view near the front or rear when the marks fit the car's other end far better.
     A front three-quarter photo told the rear three-quarter view fits, bent, with a few pixels
-    of residual; its evidence gives it away. The other end is fitted (as the given view was)
-    only when the marks' names say so (``said``, from
+    of residual; its evidence gives it away. The other end is fitted (as the given view was),
+    and the other end from the other side too when the names do not say (a rear view 15° off
+    told the front view 15° off the other way: 195° for 15°), only when the marks' names say so (``said``, from
     :func:`carbody.fit.visibility.view_the_marks_say`) or the fit's evidence is poor
     (``END_SUSPECT_EVIDENCE``), so a sound fit costs nothing more.
 
@@ -833,12 +834,24 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
     paper = result.method == "paper"
     if said is None and (paper or here <= END_SUSPECT_EVIDENCE * 2 * len(slots)):
         return
-    azimuth = (180.0 - given.azimuth) % 360.0
-    try:
-        other = _fit_marks(slots, uv, **{**marks, "view": View(azimuth, given.elevation, given.roll), "deform": False})
-    except (FitError, AngleError):
+    # The other end (θ ↔ 180° − θ) and, when the names did not say which, the other end seen from
+    # the car's other side (θ ↔ 180° + θ: a view told a half turn off, whose few side marks near
+    # the front or rear need not give the side away)
+    ends = [(180.0 - given.azimuth) % 360.0]
+    if said is None and degrees_from_axis(given.azimuth) > 1.0:
+        ends.append((180.0 + given.azimuth) % 360.0)
+    best = None
+    for azimuth in ends:
+        try:
+            other = _fit_marks(slots, uv, **{**marks, "view": View(azimuth, given.elevation, given.roll), "deform": False})
+        except (FitError, AngleError):
+            continue
+        there = view_score(other.solution)
+        if best is None or there < best[1]:
+            best = (azimuth, there)
+    if best is None:
         return
-    there = view_score(other.solution)
+    azimuth, there = best
     # (a sound fit there, not merely a less bad one: a left/right pair swapped on a front view
     # fits both ends badly, and is for the rejection to mend)
     sound = paper or there <= END_SUSPECT_EVIDENCE * 2 * len(slots)
@@ -846,9 +859,10 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
         return
     names = "" if said is None else (f"; {len(said[2])} of the {len(slots)} keypoints ({', '.join(said[2][:3])}, …) "
                                      "cannot be seen from the view given")
+    side = "" if azimuth == ends[0] else ", seen from its other side"
     raise SideError(f"the marks fit a view of {azimuth:g}° far better than the {given.azimuth:g}° given "
                     f"(−log evidence {there:.0f} against {here:.0f}{names}): the photo shows the car's other "
-                    "end (front for rear), or the marks' front/rear names are swapped", azimuth)
+                    f"end (front for rear{side}), or the marks' front/rear names are swapped", azimuth)
 
 
 #: A focal length (pixels) under this fraction of the photo's diagonal (taken as twice the
