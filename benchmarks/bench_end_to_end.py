@@ -120,6 +120,7 @@ def run_template(args) -> list[dict]:
                    shell_valid=bool(shell.get("valid", False)), faces=len(result.body.faces),
                    fallback=None if result.fallback is None else result.fallback["fit"],
                    share_of_fit=None if result.fallback is None else result.fallback["share_of_fit"],
+                   evidence_per_coordinate=result.fit.evidence_per_coordinate, fits_poorly=result.fit.fits_poorly,
                    view_source=result.view_source)
         rows.append(row)
     return rows
@@ -172,6 +173,16 @@ def failures(rows: list[dict]) -> str:
     return "\n".join(f"- {r['template']} at {r['view']}°: {r['error']}" for r in bad) or "- none"
 
 
+def poor_fits(rows: list[dict]) -> str:
+    ok = [r for r in rows if r["error"] is None]
+    evidence = np.array([r["evidence_per_coordinate"] for r in ok])
+    poor = [r for r in ok if r["fits_poorly"]]
+    head = (f"−log evidence per coordinate over the runs: median {np.median(evidence):.1f}, 99th percentile "
+            f"{np.percentile(evidence, 99):.1f}, max {evidence.max():.1f}; said to fit poorly: {len(poor)} of {len(ok)}")
+    return "\n".join([head] + [f"- {r['template']} at {r['view']}°: {r['evidence_per_coordinate']:.0f} per coordinate "
+                               f"({r['mean_mm']:.0f} mm)" for r in poor])
+
+
 def fallbacks(rows: list[dict]) -> str:
     made = [r for r in rows if r.get("fallback")]
     return "\n".join(f"- {r['template']} at {r['view']}°: {r['fallback']}, {r['share_of_fit']:.0%} of the fit "
@@ -213,6 +224,8 @@ def main(argv=None) -> int:
     print(by_view(rows))
     print("\nRuns that stopped:\n")
     print(failures(rows))
+    print("\nThe fit's own verdict (a note when no car near the view fits the marks):\n")
+    print(poor_fits(rows))
     print("\nRuns surfaced from a stiffer fit (the first fit's wireframe had a region crossing itself):\n")
     print(fallbacks(rows))
     if args.json:

@@ -244,3 +244,19 @@ def test_a_close_photo_fitted_as_orthographic_says_so(tmp_path):
     check = rep["orthographic_check"]
     assert check["closer_camera"] and check["camera_distance_mm"] == pytest.approx(7000, rel=0.15)
     assert "looks taken from close by" in proc.stdout and "--distance auto" in proc.stdout
+
+
+def test_a_view_given_far_off_is_said_to_fit_poorly(tmp_path):
+    """The shipped example (a front three-quarter photo, 30°) told the side view (90°): the fit
+    refines to a car turned inside out that misses the marks by ~20 px; the note says no car
+    near the view fits them, and the report's evidence says how badly. Told 30° it does not."""
+    from carbody.fit.single_view import END_SUSPECT_EVIDENCE
+    from tests.conftest import REPO
+
+    for view, poor in (("90", True), ("30", False)):
+        proc = run_cli("fit", str(REPO / "examples" / "car.png"), "--keypoints",
+                       str(REPO / "examples" / "car_keypoints.json"), "--view", view,
+                       "-o", str(tmp_path / "car.step"), "--report", str(tmp_path / "r.json"), check=True)
+        rep = json.loads((tmp_path / "r.json").read_text())
+        assert rep["fits_poorly"] is poor and ("no car near this view fits the marks" in proc.stdout) is poor
+        assert (rep["evidence_per_coordinate"] > END_SUSPECT_EVIDENCE) is poor

@@ -141,7 +141,8 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.camera import View, read_view
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
-    from carbody.fit.report import build_report, closer_camera_line, draw_error_chart, expected_error_line, marks_notes, write_json
+    from carbody.fit.report import (build_report, closer_camera_line, draw_error_chart, expected_error_line,
+                                    marks_notes, poor_fit_line, write_json)
     from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
@@ -209,6 +210,8 @@ def run_fit(args: argparse.Namespace) -> int:
         print(expected_error_line(expected))
     for line in marks_notes(result.rejected_px, result.rejected_looks_like, result.swapped_names):
         print("note: " + line)
+    if result.fits_poorly:
+        print("note: " + poor_fit_line(result.evidence_per_coordinate, result.solution.residual_px.mean()))
     if result.closer_camera:
         print("note: " + closer_camera_line(result.closer_camera))
     suspects = result.suspect_keypoints()

@@ -63,6 +63,10 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         "residual_px": res,
         "residual_px_mean": float(np.mean(list(res.values()))),
         "residual_px_max": float(np.max(list(res.values()))),
+        # −log evidence per marked coordinate (None: the paper's solve); fits_poorly: above the
+        # level no sound fit reaches (a view given far off, marks named wrongly)
+        "evidence_per_coordinate": result.evidence_per_coordinate,
+        "fits_poorly": result.fits_poorly,
         "visible_at_refined_view": visible,
         "annotated_but_hidden": [s.name for s in result.slots if s.name not in visible],
         "suspect_keypoints": result.suspect_keypoints(),
@@ -120,6 +124,14 @@ def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], swapp
             + (f"; where it puts {looks_like[n]}" if n in looks_like else "") + ")"
             for n, px in rejected_px.items()) + ": check those marks")
     return lines
+
+
+def poor_fit_line(evidence_per_coordinate: float, residual_px_mean: float) -> str:
+    """One line for a person: no car near the view fits the marks (the report's ``fits_poorly``)."""
+    return (f"no car near this view fits the marks (mean residual {residual_px_mean:.1f} px, −log evidence "
+            f"{evidence_per_coordinate:.0f} per coordinate, where fits at a photo's own view stay under 10): the wireframe is "
+            "not to be trusted; check the view given (leave it to the classifier with `carbody reconstruct`) "
+            "and the marks' names")
 
 
 def closer_camera_line(closer: dict) -> str:

@@ -274,6 +274,23 @@ class FitResult:
     orthographic_check: dict | None = None
 
     @property
+    def evidence_per_coordinate(self) -> float | None:
+        """The fit's −log evidence per marked coordinate (Gaussian-prior methods; None for the
+        paper's solve): ≤ 6.1 on the leave-one-out cars' own marks at their views, with 1 or 5 px
+        of noise (BENCHMARKS.md, ``--other-end``), ≤ 8.2 over the end-to-end runs (the pickup's
+        stiffer refits; ``bench_end_to_end.py``); above ``END_SUSPECT_EVIDENCE`` no car near the
+        view fits the marks (:meth:`fits_poorly`)."""
+        evidence = self.solution.evidence
+        return None if evidence is None else float(evidence) / (2 * len(self.slots))
+
+    @property
+    def fits_poorly(self) -> bool:
+        """No car near the refined view fits the marks: a view given far off, or marks named
+        wrongly (``evidence_per_coordinate`` above ``END_SUSPECT_EVIDENCE``)."""
+        value = self.evidence_per_coordinate
+        return value is not None and value > END_SUSPECT_EVIDENCE
+
+    @property
     def closer_camera(self) -> dict | None:
         """The orthographic check (``orthographic_check``) when a camera close by fits the marks
         far better, else None."""
