@@ -153,13 +153,16 @@ class Reconstruction:
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({fit['wheelbase_from']})",
         ]
-        from carbody.fit.report import closer_camera_line, expected_error_line, marks_notes, poor_fit_line
+        from carbody.fit.report import (closer_camera_line, expected_error_line, marks_notes, poor_fit_line,
+                                        search_edge_line)
 
         if "expected_error_mm" in fit:
             lines.append(expected_error_line(fit["expected_error_mm"]))
         lines += marks_notes(fit["rejected_keypoints"], fit["rejected_looks_like"], fit["swapped_keypoints"])
         if fit["fits_poorly"]:
             lines.append("note: " + poor_fit_line(fit["evidence_per_coordinate"], fit["residual_px_mean"]))
+        if fit["view_at_search_edge"]:
+            lines.append("note: " + search_edge_line(fit["given_view"]["azimuth_deg"], fit["refined_view"]["azimuth_deg"]))
         if (fit["orthographic_check"] or {}).get("closer_camera"):
             lines.append("note: " + closer_camera_line(fit["orthographic_check"]))
         if fit["suspect_keypoints"]:

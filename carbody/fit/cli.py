@@ -142,7 +142,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
     from carbody.fit.report import (build_report, closer_camera_line, draw_error_chart, expected_error_line,
-                                    marks_notes, poor_fit_line, write_json)
+                                    marks_notes, poor_fit_line, search_edge_line, write_json)
     from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
@@ -212,6 +212,8 @@ def run_fit(args: argparse.Namespace) -> int:
         print("note: " + line)
     if result.fits_poorly:
         print("note: " + poor_fit_line(result.evidence_per_coordinate, result.solution.residual_px.mean()))
+    if result.view_at_search_edge:
+        print("note: " + search_edge_line(result.given_view.azimuth, result.view.azimuth))
     if result.closer_camera:
         print("note: " + closer_camera_line(result.closer_camera))
     suspects = result.suspect_keypoints()

@@ -67,6 +67,8 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         # level no sound fit reaches (a view given far off, marks named wrongly)
         "evidence_per_coordinate": result.evidence_per_coordinate,
         "fits_poorly": result.fits_poorly,
+        # the refined azimuth at the edge of the range searched around the given one
+        "view_at_search_edge": result.view_at_search_edge,
         "visible_at_refined_view": visible,
         "annotated_but_hidden": [s.name for s in result.slots if s.name not in visible],
         "suspect_keypoints": result.suspect_keypoints(),
@@ -132,6 +134,14 @@ def poor_fit_line(evidence_per_coordinate: float, residual_px_mean: float) -> st
             f"{evidence_per_coordinate:.0f} per coordinate, where fits at a photo's own view stay under 10): the wireframe is "
             "not to be trusted; check the view given (leave it to the classifier with `carbody reconstruct`) "
             "and the marks' names")
+
+
+def search_edge_line(given_deg: float, refined_deg: float) -> str:
+    """One line for a person: the refined view settled at the edge of the range searched."""
+    from carbody.fit.refine import AZIMUTH_RANGE_DEG
+
+    return (f"the view settled at {refined_deg:.1f}°, the edge of the ±{AZIMUTH_RANGE_DEG:g}° searched around the "
+            f"{given_deg:.0f}° given: the photo's view likely lies further off; give a nearer view")
 
 
 def closer_camera_line(closer: dict) -> str:

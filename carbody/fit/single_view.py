@@ -205,6 +205,10 @@ def library_mean(library: Library) -> np.ndarray:
     return _PREPARED[key][1]
 
 
+#: A refined azimuth within this many degrees of the refinement's range is at its edge
+#: (``FitResult.view_at_search_edge``).
+SEARCH_EDGE_DEG = 0.5
+
 #: A mark is suspect when its residual exceeds this many times the median residual …
 SUSPECT_RESIDUAL_RATIO = 4.0
 
@@ -289,6 +293,15 @@ class FitResult:
         wrongly (``evidence_per_coordinate`` above ``END_SUSPECT_EVIDENCE``)."""
         value = self.evidence_per_coordinate
         return value is not None and value > END_SUSPECT_EVIDENCE
+
+    @property
+    def view_at_search_edge(self) -> bool:
+        """The refined azimuth settled at the edge of the range the refinement searches around
+        the given one (``AZIMUTH_RANGE_DEG``): the photo's view likely lies further off."""
+        from carbody.fit.refine import AZIMUTH_RANGE_DEG
+
+        moved = abs((self.view.azimuth - self.given_view.azimuth + 180.0) % 360.0 - 180.0)
+        return moved > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG
 
     @property
     def closer_camera(self) -> dict | None:
