@@ -848,9 +848,9 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
                marks: dict) -> None:
     """Refuse a view near the front or rear when the marks fit the car's other end far better.
     A front three-quarter photo told the rear three-quarter view fits, bent, with a few pixels
-    of residual; its evidence gives it away. The other end is fitted (as the given view was),
-    and the other end from the other side too when the names do not say (a rear view 15° off
-    told the front view 15° off the other way: 195° for 15°), only when the marks' names say so (``said``, from
+    of residual; its evidence gives it away. The other end is fitted (as the given view was) —
+    and, when the names say nothing, the other end seen from the car's other side too (a half
+    turn: 195° for 15°) — only when the marks' names say so (``said``, from
     :func:`carbody.fit.visibility.view_the_marks_say`) or the fit's evidence is poor
     (``END_SUSPECT_EVIDENCE``), so a sound fit costs nothing more.
 
