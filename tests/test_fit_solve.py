@@ -524,6 +524,25 @@ def test_an_orthographic_fit_of_a_close_photo_says_a_camera_close_by_fits(librar
     assert far.orthographic_check["evidence_gain_per_coordinate"] < CLOSER_CAMERA_EVIDENCE
 
 
+def test_a_view_stopped_at_the_edge_of_the_search_searches_again(monkeypatch):
+    """The shipped example (30°, from 7 m) told 60°: the refinement searches ±25° and stops at
+    its edge, 35°, leaving two sound marks out as misplaced; searching again around where it
+    stopped, it lands on 30° with every mark. Without the second search the fit says its view
+    stopped at the edge, and the summary line says to give a nearer view."""
+    import carbody.fit.single_view as single_view
+    from carbody.fit import read_keypoints
+    from carbody.fit.report import search_edge_line
+    from tests.conftest import REPO
+
+    ann = read_keypoints(REPO / "examples" / "car_keypoints.json")
+    walked = fit_wireframe(ann.points, 60, image_size=ann.image_size, camera_distance_mm="auto")
+    assert abs(walked.view.azimuth - 30) < 1 and not walked.view_at_search_edge and not walked.rejected_px
+    monkeypatch.setattr(single_view, "MAX_VIEW_WALKS", 0)
+    stopped = fit_wireframe(ann.points, 60, image_size=ann.image_size, camera_distance_mm="auto")
+    assert stopped.view_at_search_edge and abs(stopped.view.azimuth - 35) < 0.6
+    assert "give a nearer view" in search_edge_line(60, stopped.view.azimuth)
+
+
 def test_a_rough_scan_ranks_the_grid_and_the_full_solve_answers():
     """refine_view's ``scan_at`` (a pinhole view's single Newton round) ranks the coarse grid
     only: the continuous search and the returned solution are the full solve's."""

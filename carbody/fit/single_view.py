@@ -17,7 +17,7 @@ from carbody.camera import (View, apply_homography, degrees_from_axis, look_at_h
                             project)
 from carbody.fit.deform import DeformationField, joint_field_basis
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints, keypoint_slots
-from carbody.fit.refine import DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
+from carbody.fit.refine import AZIMUTH_RANGE_DEG, DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
 from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERATIONS, KeypointBasis,
                                MixSolution, ShapeModel, car_centre, keypoint_covariance, keypoint_spread,
                                solve_gauss, solve_simplex)
@@ -205,9 +205,18 @@ def library_mean(library: Library) -> np.ndarray:
     return _PREPARED[key][1]
 
 
-#: A refined azimuth within this many degrees of the refinement's range is at its edge
-#: (``FitResult.view_at_search_edge``).
+#: A refined azimuth within this many degrees of the refinement's range is at its edge …
 SEARCH_EDGE_DEG = 0.5
+
+#: … and the refinement is run again around it, at most this many times (a view given up to
+#: ~70° off; no end-to-end benchmark run reaches the edge).
+MAX_VIEW_WALKS = 2
+
+
+def _at_search_edge(view: View, centre: View) -> bool:
+    """Whether ``view``'s azimuth lies at the edge of the range searched around ``centre``'s."""
+    moved = abs((view.azimuth - centre.azimuth + 180.0) % 360.0 - 180.0)
+    return moved > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG
 
 #: A mark is suspect when its residual exceeds this many times the median residual …
 SUSPECT_RESIDUAL_RATIO = 4.0
@@ -247,6 +256,8 @@ class FitResult:
         solve_residual_px: (k,) the marks' residuals before the deformation (None: no
             deformation, see ``solution.residual_px``).
         joint_field: whether the solve had the local displacement field in its prior.
+        search_view: the view the refinement last searched around (the given one, or, when the
+            view settled at the edge of that range, where it settled: ``MAX_VIEW_WALKS``).
         orthographic_check: an orthographic fit asked to check (``check_orthographic``): its
             marks fitted with the camera's distance found, against it (:func:`_orthographic_check`:
             ``camera_distance_mm`` found, ``residual_px_mean`` of that fit and
@@ -276,6 +287,7 @@ class FitResult:
     solve_residual_px: np.ndarray | None = field(default=None, repr=False)
     joint_field: bool = True
     orthographic_check: dict | None = None
+    search_view: View | None = None
 
     @property
     def evidence_per_coordinate(self) -> float | None:
@@ -296,12 +308,10 @@ class FitResult:
 
     @property
     def view_at_search_edge(self) -> bool:
-        """The refined azimuth settled at the edge of the range the refinement searches around
-        the given one (``AZIMUTH_RANGE_DEG``): the photo's view likely lies further off."""
-        from carbody.fit.refine import AZIMUTH_RANGE_DEG
-
-        moved = abs((self.view.azimuth - self.given_view.azimuth + 180.0) % 360.0 - 180.0)
-        return moved > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG
+        """The refined azimuth settled at the edge of the range the refinement last searched
+        (``AZIMUTH_RANGE_DEG`` around ``search_view``, after ``MAX_VIEW_WALKS`` searches moved
+        on): the photo's view likely lies further off."""
+        return _at_search_edge(self.view, self.search_view or self.given_view)
 
     @property
     def closer_camera(self) -> dict | None:
@@ -876,6 +886,8 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
             other = _fit_marks(slots, uv, **{**marks, "view": View(azimuth, given.elevation, given.roll), "deform": False})
         except (FitError, AngleError):
             continue
+        if other.search_view is not None and other.search_view.azimuth != azimuth:
+            continue  # its view walked off toward another (the given end's, from the mirror)
         there = view_score(other.solution)
         if best is None or there < best[1]:
             best = (azimuth, there)
@@ -1093,8 +1105,16 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
             view = _pinhole(view, camera_distance_mm, distance_wheelbase_mm, library)
         if camera_distance_mm == "auto":
             free += ("perspective",)
+    centre = view
     if free:
         refined, sol = refine_view(solve_at, view, free=free, scan=scan, scan_at=scan_at)
+        # Stopped at the edge of the azimuths searched: the photo's view lies further off (a view
+        # given 30° off, a classifier's neighbour's neighbour); search again around it.
+        for _ in range(MAX_VIEW_WALKS if "azimuth" in free else 0):
+            if not _at_search_edge(refined, centre):
+                break
+            centre = refined if sol.view is None else sol.view
+            refined, sol = refine_view(solve_at, centre, free=free, scan=True, scan_at=scan_at)
     else:
         refined, sol = view, solve_at(view)
     if sol.view is not None:
@@ -1115,7 +1135,7 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
     return FitResult(wireframe=Wireframe(name, points), view=refined, given_view=view, solution=sol,
                      slots=slots, uv=uv, wheelbase_mm=float(wheelbase_mm), method=method,
                      library=library, wheelbase_from="library mix" if told is None else "told",
-                     joint_field=joint_field and method != "paper")
+                     joint_field=joint_field and method != "paper", search_view=centre)
 
 
 #: Step (degrees) of the finite differences that measure how sharply the evidence pins a
