@@ -540,6 +540,20 @@ def table(label: str, rs: list[dict]) -> str:
     return "\n".join(out)
 
 
+def run_check(run, jobs: list, title: str, table, args) -> int:
+    """A check's runs over the templates (``--other-end``, ``--orthographic-check``): its table
+    under a title with the time taken, and every row as JSON with ``--json``."""
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(args.workers) as pool:
+        rows = [r for part in pool.map(run, jobs) for r in part]
+    print(f"# {title} ({time.perf_counter() - t0:.0f} s)\n")
+    print(table(rows))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=1)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="3 templates, 5 angles")
@@ -618,32 +632,18 @@ def main(argv=None) -> int:
     templates = [0, 5, 9] if args.quick else list(range(n_templates))
     angles = (0, 30, 90, 150, 180) if args.quick else ANGLES
     if args.other_end:
-        t0 = time.perf_counter()
-        with ProcessPoolExecutor(args.workers) as pool:
-            rows = [r for part in pool.map(run_other_end, [(t, angles, args.elevation, args.noise)
-                                                              for t in templates]) for r in part]
-        print(f"# The car's other end, leave-one-out: {len(templates)} templates, views within the check's "
-              f"range of the front or rear, elevation {args.elevation:g}°, {args.noise:g} px noise "
-              f"({time.perf_counter() - t0:.0f} s)\n")
-        print(other_end_table(rows))
-        if args.json:
-            with open(args.json, "w") as f:
-                json.dump(rows, f, indent=1)
-        return 0
+        return run_check(run_other_end, [(t, angles, args.elevation, args.noise) for t in templates],
+                         f"The car's other end, leave-one-out: {len(templates)} templates, views within the "
+                         f"check's range of the front or rear, elevation {args.elevation:g}°, {args.noise:g} px noise",
+                         other_end_table, args)
     if args.orthographic_check:
-        t0 = time.perf_counter()
-        with ProcessPoolExecutor(args.workers) as pool:
-            rows = [r for part in pool.map(run_orthographic_check, [(t, angles, args.elevation, args.noise, outliers)
-                                                                       for t in templates]) for r in part]
-        print(f"# Photos fitted as orthographic, leave-one-out: {len(templates)} templates x {len(angles)} "
-              f"angles, elevation {args.elevation:g}° (given, refined), wheelbase not told, "
-              f"{args.noise:g} px noise{f', {outliers[0]} mark(s) a view moved {outliers[1]:g} px' if outliers else ''} "
-              f"({time.perf_counter() - t0:.0f} s)\n")
-        print(orthographic_check_table(rows))
-        if args.json:
-            with open(args.json, "w") as f:
-                json.dump(rows, f, indent=1)
-        return 0
+        return run_check(run_orthographic_check,
+                         [(t, angles, args.elevation, args.noise, outliers) for t in templates],
+                         f"Photos fitted as orthographic, leave-one-out: {len(templates)} templates x "
+                         f"{len(angles)} angles, elevation {args.elevation:g}° (given, refined), wheelbase not "
+                         f"told, {args.noise:g} px noise"
+                         f"{f', {outliers[0]} mark(s) a view moved {outliers[1]:g} px' if outliers else ''}",
+                         orthographic_check_table, args)
     cases = [("paper", None, 0.0, False, False), ("gauss", None, 0.0, False, True),
              ("gauss", None, 0.0, False, False), ("mixture", None, 0.0, False, True),
              # a user who does not know the wheelbase: the plain shape model, the error at the

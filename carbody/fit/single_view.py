@@ -213,10 +213,18 @@ SEARCH_EDGE_DEG = 0.5
 MAX_VIEW_WALKS = 2
 
 
+def _walked(search_view: View, azimuth: float) -> bool:
+    """Whether a fit started at ``azimuth`` searched again around another view (``MAX_VIEW_WALKS``)."""
+    from carbody.view.labels import angular_difference
+
+    return bool(angular_difference(search_view.azimuth, azimuth) > 1e-9)
+
+
 def _at_search_edge(view: View, centre: View) -> bool:
     """Whether ``view``'s azimuth lies at the edge of the range searched around ``centre``'s."""
-    moved = abs((view.azimuth - centre.azimuth + 180.0) % 360.0 - 180.0)
-    return moved > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG
+    from carbody.view.labels import angular_difference
+
+    return bool(angular_difference(view.azimuth, centre.azimuth) > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG)
 
 #: A mark is suspect when its residual exceeds this many times the median residual …
 SUSPECT_RESIDUAL_RATIO = 4.0
@@ -586,8 +594,8 @@ CLOSER_CAMERA_GAIN = 0.6
 
 #: … or its −log evidence per marked coordinate is lower by more than this (BENCHMARKS.md: at
 #: most 0.32 on the leave-one-out benchmark's orthographic pictures, with 1 or 5 px of noise or a
-#: misplaced mark): a level front view from a few metres is fitted orthographic to ~1 px, but by
-#: a car seen from 60° above.
+#: misplaced mark): a level front view from a few metres can be fitted orthographic to about a
+#: pixel, but by a car seen steeply from above.
 CLOSER_CAMERA_EVIDENCE = 1.0
 
 
@@ -886,7 +894,7 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
             other = _fit_marks(slots, uv, **{**marks, "view": View(azimuth, given.elevation, given.roll), "deform": False})
         except (FitError, AngleError):
             continue
-        if other.search_view is not None and other.search_view.azimuth != azimuth:
+        if other.search_view is not None and _walked(other.search_view, azimuth):
             continue  # its view walked off toward another (the given end's, from the mirror)
         there = view_score(other.solution)
         if best is None or there < best[1]:
