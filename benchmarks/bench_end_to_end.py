@@ -226,7 +226,7 @@ def main(argv=None) -> int:
     print(by_view(rows))
     print("\nRuns that stopped:\n")
     print(failures(rows))
-    print("\nThe fit's own verdict (a note when no car near the view fits the marks):\n")
+    print("\nThe fit's own verdict (a note when no car fits the marks):\n")
     print(poor_fits(rows))
     print("\nRuns surfaced from a stiffer fit (the first fit's wireframe had a region crossing itself):\n")
     print(fallbacks(rows))

@@ -13,10 +13,11 @@ with the photo-matching deformation (default) and, where marked "no deform", wit
 ``--sweep`` also scans the default method's prior weight λ on the known-view case;
 ``--elevation`` views from above; ``--distance`` photographs with a pinhole camera;
 ``--other-end`` runs only the check that a view near the front or rear is not the car's other end;
-``--orthographic-check`` only the check that a photo fitted as orthographic was taken from close by.
+``--orthographic-check`` only the check that a photo fitted as orthographic was taken from close by;
+``--view-off DEG,...`` only views told that far off (what the fit refuses, naming which view).
 
 Run: python benchmarks/bench_fit_accuracy.py [--quick] [--sweep] [--elevation DEG] [--distance MM]
-    [--known-only] [--other-end] [--orthographic-check] [--json out.json]
+    [--known-only] [--other-end] [--orthographic-check] [--view-off DEG,...] [--json out.json]
 """
 from __future__ import annotations
 
@@ -353,6 +354,71 @@ def orthographic_check_table(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+def run_view_off(args) -> list[dict]:
+    """Template t at each angle, fitted (wheelbase not told, view refined, as ``carbody
+    reconstruct`` does) told its view off by each of ``offsets`` degrees: refused or not (a
+    ``SideError`` naming a view: the car's other side, its other end, or a view elsewhere that
+    fits soundly), then followed as reconstruct follows its classifier's view — refitted at the
+    view named, at most ``MAX_VIEW_TURNS`` times — to the view it lands on and its 3D error."""
+    t, angles, elevation, noise_px, offsets = args
+    from carbody.camera import View
+    from carbody.errors import FitError, SideError
+    from carbody.fit.single_view import fit_wireframe
+    from carbody.pipeline import MAX_VIEW_TURNS
+
+    name, loo, truth, wb, idx = left_out(t)
+    rng = np.random.default_rng(4000 + t)
+    rows = []
+    for azimuth in angles:
+        kps, size, _ = synthetic_view(truth, azimuth, rng, elevation, noise_px=noise_px)
+        for off in offsets:
+            told = (azimuth + off) % 360.0
+            row = {"template": name, "azimuth": azimuth, "offset": off, "told": told, "refused_as": [],
+                   "failed": None, "view": None, "mean_mm": None, "fits_poorly": None}
+            t0 = time.perf_counter()
+            for _ in range(MAX_VIEW_TURNS + 1):
+                try:
+                    res = fit_wireframe(kps, View(told, elevation), loo, image_size=size)
+                except SideError as e:
+                    row["refused_as"].append(e.azimuth)
+                    told = e.azimuth
+                    continue
+                except FitError as e:
+                    row["failed"] = str(e)
+                    break
+                err = np.linalg.norm(res.wireframe.control_points[idx] * wb / res.wheelbase_mm
+                                     - truth[idx] * wb / 1000, axis=1)
+                row.update(view=res.view.azimuth, mean_mm=float(err.mean()), fits_poorly=res.fits_poorly)
+                break
+            row["seconds"] = time.perf_counter() - t0
+            rows.append(row)
+    return rows
+
+
+def view_off_table(rows: list[dict]) -> str:
+    """``--view-off``: per offset, how many fits were refused at first, how many of those named
+    the true view, and where following the refusals (as reconstruct does) lands."""
+    from carbody.view.labels import angular_difference
+
+    out = ["| told off by | fits | refused | first refusal naming the true view (±5°) | followed: lands within "
+           "5° of the truth | mean 3D error there, mm | lands elsewhere: said to fit poorly / quiet | "
+           "refused to the end or failed | s/fit median (max) |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for off in dict.fromkeys(r["offset"] for r in rows):
+        rs = [r for r in rows if r["offset"] == off]
+        refused = [r for r in rs if r["refused_as"]]
+        named = sum(angular_difference(r["refused_as"][0], r["azimuth"]) <= 5.0 for r in refused)
+        landed = [r for r in rs if r["view"] is not None]
+        right = [r for r in landed if angular_difference(r["view"], r["azimuth"]) <= 5.0]
+        wrong = [r for r in landed if angular_difference(r["view"], r["azimuth"]) > 5.0]
+        poor = sum(bool(r["fits_poorly"]) for r in wrong)
+        sec = [r["seconds"] for r in rs]
+        out.append(f"| {off:g}° | {len(rs)} | {len(refused)} | {named} | {len(right)} | "
+                   f"{np.mean([r['mean_mm'] for r in right]) if right else float('nan'):.1f} | "
+                   f"{poor} / {len(wrong) - poor} | {len(rs) - len(landed)} | {np.median(sec):.2f} ({max(sec):.1f}) |")
+    return "\n".join(out)
+
+
 def rejections(rows: list[dict]) -> str:
     """Marks the fits left out as misplaced, per case: how many fits left any out, how many marks,
     and how many of those were the ones moved (``--outliers``)."""
@@ -601,6 +667,9 @@ def main(argv=None) -> int:
                     help="only the check that a photo fitted as orthographic was taken from close by: "
                          "each car photographed from afar and from 20, 10, 6 and 4 m, fitted as "
                          "orthographic (asked to check) and finding the distance")
+    ap.add_argument("--view-off", metavar="DEG,...",
+                    help="only views told this far off (e.g. 0,45,90,135): refusals naming a view, "
+                         "and where following them lands")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -636,6 +705,15 @@ def main(argv=None) -> int:
                          f"The car's other end, leave-one-out: {len(templates)} templates, views within the "
                          f"check's range of the front or rear, elevation {args.elevation:g}°, {args.noise:g} px noise",
                          other_end_table, args)
+    if args.view_off:
+        try:
+            offsets = tuple(float(v) for v in args.view_off.split(","))
+        except ValueError:
+            ap.error("--view-off takes degrees separated by commas (e.g. 0,45,90)")
+        return run_check(run_view_off, [(t, angles, args.elevation, args.noise, offsets) for t in templates],
+                         f"Views told off, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
+                         f"elevation {args.elevation:g}° (given, refined), wheelbase not told, {args.noise:g} px noise",
+                         view_off_table, args)
     if args.orthographic_check:
         return run_check(run_orthographic_check,
                          [(t, angles, args.elevation, args.noise, outliers) for t in templates],

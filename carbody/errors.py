@@ -37,11 +37,13 @@ class AngleError(FitError):
 
 
 class SideError(FitError):
-    """The keypoints' names say the photo shows the car from its other side (or other end) than
-    the view given.
+    """The keypoints say the photo shows the car from another view than the one given: its
+    other side or end (by their names, or fitting it far better), or a view elsewhere round the
+    car that fits them soundly where the one given fits poorly.
 
     Attributes:
-        azimuth: the view the marks fit: the mirror (360° − θ) or the other end (180° − θ).
+        azimuth: the view the marks fit: the mirror (360° − θ), the other end (180° − θ or
+            180° + θ), or the view found round the car.
     """
 
     def __init__(self, message: str, azimuth: float):

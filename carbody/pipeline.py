@@ -57,8 +57,8 @@ class Reconstruction:
         image: (h, w, 3) uint8 RGB photo.
         image_path: where the photo came from, if a file.
         view_source: ``"given"``, ``"classifier"``, or the classifier's view turned to the
-            car's other side or end when the keypoints' names say so
-            (:class:`carbody.errors.SideError`).
+            car's other side or end, or to a view elsewhere, when the keypoints' names say so or
+            fit there far better (:class:`carbody.errors.SideError`).
         view_prediction: the classifier's answer (:class:`carbody.view.predict.ViewPrediction`) or None.
         fit: the wireframe fit (:class:`carbody.fit.FitResult`).
         body: the surfaced body (:class:`carbody.surface.Body`).
@@ -153,21 +153,9 @@ class Reconstruction:
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
             f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({fit['wheelbase_from']})",
         ]
-        from carbody.fit.report import (closer_camera_line, expected_error_line, marks_notes, poor_fit_line,
-                                        search_edge_line)
+        from carbody.fit.report import fit_notes
 
-        if "expected_error_mm" in fit:
-            lines.append(expected_error_line(fit["expected_error_mm"]))
-        lines += marks_notes(fit["rejected_keypoints"], fit["rejected_looks_like"], fit["swapped_keypoints"])
-        if fit["fits_poorly"]:
-            lines.append("note: " + poor_fit_line(fit["evidence_per_coordinate"], fit["residual_px_mean"]))
-        if fit["view_at_search_edge"]:
-            lines.append("note: " + search_edge_line(fit["given_view"]["azimuth_deg"], fit["refined_view"]["azimuth_deg"]))
-        if (fit["orthographic_check"] or {}).get("closer_camera"):
-            lines.append("note: " + closer_camera_line(fit["orthographic_check"]))
-        if fit["suspect_keypoints"]:
-            lines.append("the fitted car passes far from these marks (check them): "
-                         + ", ".join(f"{n} ({fit['residual_px'][n]:.0f} px)" for n in fit["suspect_keypoints"]))
+        lines += fit_notes(fit)
         if "error_mm_mean" in fit:
             lines.append(f"3D keypoint error vs truth: mean {fit['error_mm_mean']:.1f} mm, "
                          f"max {fit['error_mm_max']:.1f} mm at the fitted wheelbase; "
@@ -376,7 +364,7 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
                 raise
             azimuth = exc.azimuth
             tried.append(azimuth)
-            source = f"classifier, turned to {azimuth:.0f} deg: the keypoints' names are of that view"
+            source = f"classifier, turned to {azimuth:.0f} deg: the keypoints fit that view far better"
     timings["fit"] = time.perf_counter() - start
 
     start = stage("surfaces")

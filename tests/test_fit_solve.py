@@ -528,8 +528,10 @@ def test_a_view_stopped_at_the_edge_of_the_search_searches_again(monkeypatch):
     """The shipped example (30°, from 7 m) told 60°: the refinement searches ±25° and stops at
     its edge, 35°, leaving two sound marks out as misplaced; searching again around where it
     stopped, it lands on 30° with every mark. Without the second search the fit says its view
-    stopped at the edge, and the summary line says to give a nearer view."""
+    stopped at the edge, is checked all round the car and refused naming 30°; without that check
+    too, it is kept, saying it stopped at the edge, and the summary line says to give a nearer view."""
     import carbody.fit.single_view as single_view
+    from carbody.errors import SideError
     from carbody.fit import read_keypoints
     from carbody.fit.report import search_edge_line
     from tests.conftest import REPO
@@ -538,6 +540,10 @@ def test_a_view_stopped_at_the_edge_of_the_search_searches_again(monkeypatch):
     walked = fit_wireframe(ann.points, 60, image_size=ann.image_size, camera_distance_mm="auto")
     assert abs(walked.view.azimuth - 30) < 1 and not walked.view_at_search_edge and not walked.rejected_px
     monkeypatch.setattr(single_view, "MAX_VIEW_WALKS", 0)
+    with pytest.raises(SideError, match="fit a view of 30°") as refused:
+        fit_wireframe(ann.points, 60, image_size=ann.image_size, camera_distance_mm="auto")
+    assert refused.value.azimuth == 30
+    monkeypatch.setattr(single_view, "ELSEWHERE_REFINED", 0)
     stopped = fit_wireframe(ann.points, 60, image_size=ann.image_size, camera_distance_mm="auto")
     assert stopped.view_at_search_edge and abs(stopped.view.azimuth - 35) < 0.6
     assert "give a nearer view" in search_edge_line(60, stopped.view.azimuth)
@@ -642,6 +648,28 @@ def test_a_view_told_half_a_turn_off_is_refused_naming_the_photo_s_view(library)
         fit_wireframe(marks, View(15, 6), loo, camera_distance_mm="auto")
     assert refused.value.azimuth == 195
     assert abs(fit_wireframe(marks, View(195, 6), loo, camera_distance_mm="auto").view.azimuth - 195) < 3
+
+
+def test_a_view_told_far_off_is_refused_naming_the_view_the_marks_fit(library, monkeypatch):
+    """The left-out Mustang's side view told the rear (90° off): the refinement walks from 180°
+    to the edge of its search (105°), where a car 15° off the side fits without a note, 367 mm
+    off. A fit at the edge of its search (or fitting poorly) is checked all round the car: the
+    side view fits far better, and the refusal names it (90°). Without the check, the fit is
+    kept at the wrong view; the true view passes."""
+    import carbody.fit.single_view as single_view
+    from carbody.errors import SideError
+    from carbody.view.labels import angular_difference
+
+    _, loo, truth = _left_out(library, "Ford Mustang S550")
+    slots, uv = _observe(truth, View(90, 0), noise=1.0)
+    marks = {s.name: tuple(p) for s, p in zip(slots, uv)}
+    assert angular_difference(fit_wireframe(marks, View(90, 0), loo).view.azimuth, 90) < 2
+    with pytest.raises(SideError, match="far better than the 180° given") as refused:
+        fit_wireframe(marks, View(180, 0), loo)
+    assert angular_difference(refused.value.azimuth, 90) <= 5
+    monkeypatch.setattr(single_view, "ELSEWHERE_REFINED", 0)  # the check finds nothing
+    kept = fit_wireframe(marks, View(180, 0), loo)
+    assert angular_difference(kept.view.azimuth, 90) > 10 and kept.view_at_search_edge
 
 
 @pytest.mark.parametrize("template, azimuth, region", [("Ford Mustang S550", 45, "front_wheel_arch"),

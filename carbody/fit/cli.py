@@ -141,8 +141,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.camera import View, read_view
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
-    from carbody.fit.report import (build_report, closer_camera_line, draw_error_chart, expected_error_line,
-                                    marks_notes, poor_fit_line, search_edge_line, write_json)
+    from carbody.fit.report import build_report, draw_error_chart, fit_notes, write_json
     from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
     from carbody.library import load_library
@@ -180,7 +179,7 @@ def run_fit(args: argparse.Namespace) -> int:
                            focal_px=focal, check_orthographic=True,
                            name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
-    report = build_report(result, truth, image=args.image) if (args.report or truth is not None) else None
+    report = build_report(result, truth, image=args.image)
 
     write_wireframe(args.output, result.wireframe, both_halves=True)
     if overlay is not None:
@@ -205,26 +204,9 @@ def run_fit(args: argparse.Namespace) -> int:
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm ({result.wheelbase_from}) -> {args.output}")
-    expected = result.expected_error_mm() if report is None else report.get("expected_error_mm")
-    if expected is not None:
-        print(expected_error_line(expected))
-    for line in marks_notes(result.rejected_px, result.rejected_looks_like, result.swapped_names):
-        print("note: " + line)
-    if result.fits_poorly:
-        print("note: " + poor_fit_line(result.evidence_per_coordinate, result.solution.residual_px.mean()))
-    if result.view_at_search_edge:
-        print("note: " + search_edge_line(result.given_view.azimuth, result.view.azimuth))
-    if result.closer_camera:
-        print("note: " + closer_camera_line(result.closer_camera))
-    suspects = result.suspect_keypoints()
-    if suspects:
-        res = result.residuals_px()
-        print("note: the fitted car passes far from " + ", ".join(f"{n} ({res[n]:.0f} px)" for n in suspects)
-              + ": check those marks (place, left/right name)")
-    if report and report["annotated_but_hidden"]:
-        print(f"note: by the fitted geometry {', '.join(report['annotated_but_hidden'])} may be "
-              "hidden at this view (check the left/right names)")
-    if report and "error_mm_mean" in report:
+    for line in fit_notes(report):
+        print(line)
+    if "error_mm_mean" in report:
         print(f"3D keypoint error vs {report['truth']}: mean {report['error_mm_mean']:.1f} mm, "
               f"max {report['error_mm_max']:.1f} mm (at its wheelbase: mean "
               f"{report['error_mm_at_truth_wheelbase_mean']:.1f} mm, max "

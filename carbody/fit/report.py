@@ -113,6 +113,32 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
     return report
 
 
+def fit_notes(report: dict) -> list[str]:
+    """The lines a person reads after a fit, from its report (:func:`build_report`): the fit's
+    own expected error, then notes on marks left out or renamed, marks no car fits, a view
+    stopped at the edge of the search, a photo taken from close by, marks the fitted car passes
+    far from, and marks the fitted geometry hides. ``carbody fit`` prints them; ``carbody
+    reconstruct``'s summary carries them."""
+    lines = []
+    if "expected_error_mm" in report:
+        lines.append(expected_error_line(report["expected_error_mm"]))
+    notes = marks_notes(report["rejected_keypoints"], report["rejected_looks_like"], report["swapped_keypoints"])
+    if report["fits_poorly"]:
+        notes.append(poor_fit_line(report["evidence_per_coordinate"], report["residual_px_mean"]))
+    if report["view_at_search_edge"]:
+        notes.append(search_edge_line(report["given_view"]["azimuth_deg"], report["refined_view"]["azimuth_deg"]))
+    if (report["orthographic_check"] or {}).get("closer_camera"):
+        notes.append(closer_camera_line(report["orthographic_check"]))
+    if report["suspect_keypoints"]:
+        notes.append("the fitted car passes far from " + ", ".join(
+            f"{n} ({report['residual_px'][n]:.0f} px)" for n in report["suspect_keypoints"])
+            + ": check those marks (place, left/right name)")
+    if report["annotated_but_hidden"]:
+        notes.append(f"by the fitted geometry {', '.join(report['annotated_but_hidden'])} may be hidden at this "
+                     "view (check the left/right names)")
+    return lines + ["note: " + n for n in notes]
+
+
 def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], swapped) -> list[str]:
     """Lines for a person about marks the fit left out or renamed (the report's
     ``rejected_keypoints``, ``rejected_looks_like``, ``swapped_keypoints``)."""
@@ -129,11 +155,11 @@ def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], swapp
 
 
 def poor_fit_line(evidence_per_coordinate: float, residual_px_mean: float) -> str:
-    """One line for a person: no car near the view fits the marks (the report's ``fits_poorly``)."""
-    return (f"no car near this view fits the marks (mean residual {residual_px_mean:.1f} px, −log evidence "
-            f"{evidence_per_coordinate:.0f} per coordinate, where fits at a photo's own view stay under 10): the wireframe is "
-            "not to be trusted; check the view given (leave it to the classifier with `carbody reconstruct`) "
-            "and the marks' names")
+    """One line for a person: no car fits the marks, at the view or elsewhere (the report's ``fits_poorly``;
+    a view elsewhere that fits soundly is refused naming it, :func:`carbody.fit.single_view._check_elsewhere`)."""
+    return (f"no car fits the marks at this view, nor soundly at any other round the car (mean residual "
+            f"{residual_px_mean:.1f} px, −log evidence {evidence_per_coordinate:.0f} per coordinate, where fits at a "
+            "photo's own view stay under 10): the wireframe is not to be trusted; check the marks' names and places")
 
 
 def search_edge_line(given_deg: float, refined_deg: float) -> str:

@@ -303,14 +303,16 @@ class FitResult:
         paper's solve): ≤ 6.1 on the leave-one-out cars' own marks at their views, with 1 or 5 px
         of noise (BENCHMARKS.md, ``--other-end``), ≤ 8.2 over the end-to-end runs (the pickup's
         stiffer refits; ``bench_end_to_end.py``); above ``END_SUSPECT_EVIDENCE`` no car near the
-        view fits the marks (:meth:`fits_poorly`)."""
+        view fits the marks (:meth:`fits_poorly`; a view elsewhere that fits them soundly is
+        refused naming it, :func:`_check_elsewhere`)."""
         evidence = self.solution.evidence
         return None if evidence is None else float(evidence) / (2 * len(self.slots))
 
     @property
     def fits_poorly(self) -> bool:
-        """No car near the refined view fits the marks: a view given far off, or marks named
-        wrongly (``evidence_per_coordinate`` above ``END_SUSPECT_EVIDENCE``)."""
+        """No car near the refined view fits the marks, nor soundly at any view round the car
+        (:func:`_check_elsewhere` refuses the fit otherwise): marks named wrongly
+        (``evidence_per_coordinate`` above ``END_SUSPECT_EVIDENCE``)."""
         value = self.evidence_per_coordinate
         return value is not None and value > END_SUSPECT_EVIDENCE
 
@@ -547,6 +549,7 @@ def _fit_checking_marks(slots: list[KeypointSlot], uv: np.ndarray, marks: dict, 
     (:func:`_check_end`), and (``reject_outliers``) marks left out or a pair's names exchanged."""
     result = _fit_marks(slots, uv, **marks)
     _check_end(result, said, slots, uv, marks)
+    _check_elsewhere(result, slots, uv, marks)
     if not reject_outliers:
         return result
     prior_weight = marks["prior_weight"]
@@ -913,6 +916,59 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
     raise SideError(f"the marks fit a view of {azimuth:g}° far better than the {given.azimuth:g}° given "
                     f"(−log evidence {there:.0f} against {here:.0f}{names}): the photo shows the car's other "
                     f"end (front for rear{side}), or the marks' front/rear names are swapped", azimuth)
+
+
+#: A fit that fits poorly (``END_SUSPECT_EVIDENCE``) is checked against views all round the car,
+#: this far apart, unrefined; the best ``ELSEWHERE_REFINED`` of them are refined …
+ELSEWHERE_STEP_DEG = 15.0
+ELSEWHERE_REFINED = 2
+
+
+def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarray, marks: dict) -> None:
+    """Refuse a view that fits the marks poorly, or whose refinement stopped at the edge of its
+    search (``view_at_search_edge``), when a view elsewhere round the car fits them soundly and
+    far better (``END_SUSPECT_EVIDENCE``, ``END_EVIDENCE_MARGIN``, as for the other end): a
+    front three-quarter photo told the side view refines to a car that misses the marks by
+    pixels, and the refinement searches only around the view given (``MAX_VIEW_WALKS``). Views
+    every ``ELSEWHERE_STEP_DEG`` round the car are fitted unrefined, the best
+    ``ELSEWHERE_REFINED`` refined (when the fit is); a sound fit costs nothing more.
+
+    Raises:
+        SideError: naming that view.
+    """
+    from carbody.view.labels import angular_difference
+
+    given = marks["view"]
+    here = view_score(result.solution)
+    level = END_SUSPECT_EVIDENCE * 2 * len(slots)
+    if result.method == "paper" or (here <= level and not result.view_at_search_edge):
+        return
+    fitted = (given.azimuth, result.view.azimuth)
+    scanned = []
+    for azimuth in np.arange(0.0, 360.0, ELSEWHERE_STEP_DEG):
+        if min(angular_difference(azimuth, a) for a in fitted) < ELSEWHERE_STEP_DEG / 2:
+            continue
+        view = View(float(azimuth), given.elevation, given.roll)
+        try:
+            fit = _fit_marks(slots, uv, **{**marks, "view": view, "refine": False, "deform": False})
+        except (FitError, AngleError):
+            continue
+        scanned.append((view_score(fit.solution), view))
+    best = None
+    for _, view in sorted(scanned, key=lambda c: c[0])[:ELSEWHERE_REFINED]:
+        try:
+            fit = _fit_marks(slots, uv, **{**marks, "view": view, "deform": False})
+        except (FitError, AngleError):
+            continue
+        there = view_score(fit.solution)
+        if best is None or there < best[1]:
+            best = (fit.view.azimuth, there)
+    if best is None or not (best[1] <= level and best[1] < here - END_EVIDENCE_MARGIN):
+        return
+    azimuth = round(best[0]) % 360
+    raise SideError(f"the marks fit a view of {azimuth:g}° far better than the {given.azimuth:g}° given "
+                    f"(−log evidence {best[1]:.0f} against {here:.0f}): give that view, or leave it to "
+                    "the view classifier (`carbody reconstruct`)", float(azimuth))
 
 
 #: A focal length (pixels) under this fraction of the photo's diagonal (taken as twice the
