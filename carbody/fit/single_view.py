@@ -310,9 +310,9 @@ class FitResult:
 
     @property
     def fits_poorly(self) -> bool:
-        """No car near the refined view fits the marks, nor soundly at any view round the car
-        (:func:`_check_elsewhere` refuses the fit otherwise): marks named wrongly
-        (``evidence_per_coordinate`` above ``END_SUSPECT_EVIDENCE``)."""
+        """No car near the refined view fits the marks (``evidence_per_coordinate`` above
+        ``END_SUSPECT_EVIDENCE``): marks named wrongly, or a view kept unrefined far off (a
+        refined one is refused when a view elsewhere fits soundly, :func:`_check_elsewhere`)."""
         value = self.evidence_per_coordinate
         return value is not None and value > END_SUSPECT_EVIDENCE
 
@@ -918,8 +918,9 @@ def _check_end(result: FitResult, said: tuple | None, slots: list[KeypointSlot],
                     f"end (front for rear{side}), or the marks' front/rear names are swapped", azimuth)
 
 
-#: A fit that fits poorly (``END_SUSPECT_EVIDENCE``) is checked against views all round the car,
-#: this far apart, unrefined; the best ``ELSEWHERE_REFINED`` of them are refined …
+#: A fit that fits poorly (``END_SUSPECT_EVIDENCE``) or stopped at the edge of its search is
+#: checked against views all round the car, this far apart, unrefined; the best
+#: ``ELSEWHERE_REFINED`` of them are refined (BENCHMARKS.md, ``bench_fit_accuracy.py --view-off``).
 ELSEWHERE_STEP_DEG = 15.0
 ELSEWHERE_REFINED = 2
 
@@ -931,7 +932,8 @@ def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarra
     front three-quarter photo told the side view refines to a car that misses the marks by
     pixels, and the refinement searches only around the view given (``MAX_VIEW_WALKS``). Views
     every ``ELSEWHERE_STEP_DEG`` round the car are fitted unrefined, the best
-    ``ELSEWHERE_REFINED`` refined (when the fit is); a sound fit costs nothing more.
+    ``ELSEWHERE_REFINED`` refined; a sound fit costs nothing more, and a view not to be refined
+    (``refine`` False) is not checked.
 
     Raises:
         SideError: naming that view.
@@ -941,8 +943,8 @@ def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarra
     given = marks["view"]
     here = view_score(result.solution)
     level = END_SUSPECT_EVIDENCE * 2 * len(slots)
-    if result.method == "paper" or (here <= level and not result.view_at_search_edge):
-        return
+    if result.method == "paper" or not marks["refine"] or (here <= level and not result.view_at_search_edge):
+        return  # (a view not to be refined is the user's: a poor fit there gets a note)
     fitted = (given.azimuth, result.view.azimuth)
     scanned = []
     for azimuth in np.arange(0.0, 360.0, ELSEWHERE_STEP_DEG):
