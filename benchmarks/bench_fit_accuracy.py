@@ -235,7 +235,7 @@ def run_other_end(args) -> list[dict]:
 
     name, loo, truth, wb, _ = left_out(t)
     rng = np.random.default_rng(2000 + t)
-    check = single_view.END_CHECK_DEG
+    check, elsewhere = single_view.END_CHECK_DEG, single_view._check_elsewhere
     rows = []
     for azimuth in angles:
         if degrees_from_axis(azimuth) > check:
@@ -246,13 +246,14 @@ def run_other_end(args) -> list[dict]:
                    "refused_as": None, "failed": None}
             kw = dict(image_size=size, wheelbase_mm=wb)
             try:
-                single_view.END_CHECK_DEG = -1.0  # the check off: this view's own evidence
+                # the checks off (this one, and the one all round the car): this view's own evidence
+                single_view.END_CHECK_DEG, single_view._check_elsewhere = -1.0, lambda result, *a: result
                 fit = fit_wireframe(kps, View(told, elevation), loo, reject_outliers=False, **kw)
                 row["evidence_per_coordinate"] = view_score(fit.solution) / (2 * len(fit.slots))
             except FitError as e:
                 row["failed"] = str(e)
             finally:
-                single_view.END_CHECK_DEG = check
+                single_view.END_CHECK_DEG, single_view._check_elsewhere = check, elsewhere
             try:
                 fit_wireframe(kps, View(told, elevation), loo, **kw)
             except SideError as e:

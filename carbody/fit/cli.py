@@ -62,7 +62,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--keypoints", "-k", required=True,
                    help="keypoint file: project JSON, COCO keypoints or labelme")
     p.add_argument("--view", required=True, help="view azimuth, degrees 0–360 (0 front, 90 left side), or a "
-                                                 "name: 'front 30', 'side', 'rear 30', 'front 30 right'")
+                                                 "name: 'front 30', 'side', 'rear 30', 'front 30 right'; "
+                                                 "refined around it (a view the marks show to be the car's "
+                                                 "other side or end, or far off, is refused naming theirs)")
     p.add_argument("--elevation", type=float, default=0.0, help="starting camera elevation, degrees")
     p.add_argument("--roll", type=float, default=0.0,
                    help="camera roll of a tilted photo, degrees (kept as given: the refinement "

@@ -549,7 +549,7 @@ def _fit_checking_marks(slots: list[KeypointSlot], uv: np.ndarray, marks: dict, 
     (:func:`_check_end`), and (``reject_outliers``) marks left out or a pair's names exchanged."""
     result = _fit_marks(slots, uv, **marks)
     _check_end(result, said, slots, uv, marks)
-    _check_elsewhere(result, slots, uv, marks)
+    result = _check_elsewhere(result, slots, uv, marks)
     if not reject_outliers:
         return result
     prior_weight = marks["prior_weight"]
@@ -925,26 +925,32 @@ ELSEWHERE_STEP_DEG = 15.0
 ELSEWHERE_REFINED = 2
 
 
-def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarray, marks: dict) -> None:
-    """Refuse a view that fits the marks poorly, or whose refinement stopped at the edge of its
-    search (``view_at_search_edge``), when a view elsewhere round the car fits them soundly and
-    far better (``END_SUSPECT_EVIDENCE``, ``END_EVIDENCE_MARGIN``, as for the other end): a
-    front three-quarter photo told the side view refines to a car that misses the marks by
-    pixels, and the refinement searches only around the view given (``MAX_VIEW_WALKS``). Views
-    every ``ELSEWHERE_STEP_DEG`` round the car are fitted unrefined, the best
-    ``ELSEWHERE_REFINED`` refined; a sound fit costs nothing more, and a view not to be refined
-    (``refine`` False) is not checked.
+def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarray, marks: dict) -> FitResult:
+    """Check a refined fit that fits the marks poorly, or whose refinement stopped at the edge of
+    its search (``view_at_search_edge``), against views all round the car: a front
+    three-quarter photo told the side view refines to a car that misses the marks by pixels,
+    and the refinement searches only around the view given (``MAX_VIEW_WALKS``). Views every
+    ``ELSEWHERE_STEP_DEG`` are fitted unrefined, the best ``ELSEWHERE_REFINED`` refined. One
+    that beats the fit by ``END_EVIDENCE_MARGIN`` −log evidence within the range searched
+    around the view given (its refinement settled in a worse place, as a pinhole photo fitted
+    as orthographic can) is refitted there and returned; one further off that also fits
+    soundly (``END_SUSPECT_EVIDENCE``) is refused. A sound fit costs nothing more, and a view
+    not to be refined (``refine`` False) is the user's: not checked.
 
+    Returns:
+        ``result``, or the better fit near the view given.
     Raises:
-        SideError: naming that view.
+        SideError: naming the view further off.
     """
+    from dataclasses import replace
+
     from carbody.view.labels import angular_difference
 
     given = marks["view"]
     here = view_score(result.solution)
     level = END_SUSPECT_EVIDENCE * 2 * len(slots)
     if result.method == "paper" or not marks["refine"] or (here <= level and not result.view_at_search_edge):
-        return  # (a view not to be refined is the user's: a poor fit there gets a note)
+        return result
     fitted = (given.azimuth, result.view.azimuth)
     scanned = []
     for azimuth in np.arange(0.0, 360.0, ELSEWHERE_STEP_DEG):
@@ -962,14 +968,20 @@ def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarra
             fit = _fit_marks(slots, uv, **{**marks, "view": view, "deform": False})
         except (FitError, AngleError):
             continue
-        there = view_score(fit.solution)
-        if best is None or there < best[1]:
-            best = (fit.view.azimuth, there)
-    if best is None or not (best[1] <= level and best[1] < here - END_EVIDENCE_MARGIN):
-        return
-    azimuth = round(best[0]) % 360
+        if best is None or view_score(fit.solution) < view_score(best.solution):
+            best = fit
+    if best is None or not view_score(best.solution) < here - END_EVIDENCE_MARGIN:
+        return result
+    there = view_score(best.solution)
+    if angular_difference(best.view.azimuth, given.azimuth) <= AZIMUTH_RANGE_DEG:
+        near = _fit_marks(slots, uv, **{**marks, "view": replace(given, azimuth=best.view.azimuth)})
+        near.given_view = given
+        return near
+    if there > level:
+        return result
+    azimuth = round(best.view.azimuth) % 360
     raise SideError(f"the marks fit a view of {azimuth:g}° far better than the {given.azimuth:g}° given "
-                    f"(−log evidence {best[1]:.0f} against {here:.0f}): give that view, or leave it to "
+                    f"(−log evidence {there:.0f} against {here:.0f}): give that view, or leave it to "
                     "the view classifier (`carbody reconstruct`)", float(azimuth))
 
 
