@@ -761,6 +761,9 @@ def main(argv=None) -> int:
                  ("mixture", None, OFFSET_DEG, True, True, True, "auto", "centre"),
                  ("mixture", None, 0.0, True, True, False, "auto", "centre", "focal"),
                  ("mixture", None, OFFSET_DEG, True, True, True, "auto", "centre", "focal")]
+    if not args.elevation:
+        # a level start is then the true elevation: a case so marked repeats its twin (one label)
+        cases = [c for c in cases if not (len(c) > 5 and c[5] and (*c[:5], False, *c[6:]) in cases)]
     if args.known_only:
         cases = [c for c in cases if not c[2]]
     lambdas = [1e-2, 1e-3, 1e-5, 1e-6] if args.sweep else []

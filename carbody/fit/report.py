@@ -155,8 +155,9 @@ def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], swapp
 
 
 def poor_fit_line(evidence_per_coordinate: float, residual_px_mean: float) -> str:
-    """One line for a person: no car fits the marks, at the view or elsewhere (the report's ``fits_poorly``;
-    a view elsewhere that fits soundly is refused naming it, :func:`carbody.fit.single_view._check_elsewhere`)."""
+    """One line for a person: no car near the view fits the marks (the report's ``fits_poorly``;
+    for a refined view, none elsewhere fits them soundly either, or the fit would have been
+    refused naming it: :func:`carbody.fit.single_view._check_elsewhere`)."""
     return (f"no car fits the marks near this view (mean residual {residual_px_mean:.1f} px, −log evidence "
             f"{evidence_per_coordinate:.0f} per coordinate, where fits at a photo's own view stay under 10): the "
             "wireframe is not to be trusted; check the marks' names and places, and the view given")
