@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 from pathlib import Path
 
@@ -39,15 +40,27 @@ def load_truth(spec: str):
 
 
 def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
-    from tqdm import tqdm
-
     from carbody.camera import read_view
     from carbody.fit.cli import parse_distance
-    from carbody.pipeline import STAGES, prepare_output_dir, reconstruct
+    from carbody.pipeline import prepare_output_dir
 
     distance = parse_distance(args.distance)
     view = None if args.view is None else read_view(args.view)
+    created = not Path(args.out).exists()
     prepare_output_dir(args.out)  # fail before the work, not after
+    try:
+        return _reconstruct_into(args, view, distance, out)
+    except BaseException:
+        if created:  # a folder made for outputs that never came is not left behind
+            shutil.rmtree(args.out, ignore_errors=True)
+        raise
+
+
+def _reconstruct_into(args: argparse.Namespace, view, distance, out) -> int:
+    from tqdm import tqdm
+
+    from carbody.pipeline import STAGES, reconstruct
+
     truth = load_truth(args.truth) if args.truth else None
     # The bar is for a person at a terminal: none in a log or a pipe (tqdm's ``disable=None``).
     with tqdm(total=len(STAGES) + 1, desc="carbody", unit="stage", file=sys.stderr, disable=None,

@@ -150,7 +150,7 @@ def test_bad_keypoint_file_is_one_line_and_writes_nothing(tmp_path):
     out = tmp_path / "out"
     proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(bad), "--view", "30", "-o", str(out))
     assert proc.returncode == 2 and len(lines) == 1 and "not a keypoint file" in lines[0]
-    assert not any(out.iterdir())
+    assert not out.exists()  # the folder made for the outputs is not left behind
 
 
 def test_image_and_keypoints_of_different_sizes_are_refused(tmp_path):
@@ -161,7 +161,7 @@ def test_image_and_keypoints_of_different_sizes_are_refused(tmp_path):
     out = tmp_path / "out"
     proc, lines = _bad(tmp_path, str(small), "-k", str(KEYPOINTS), "--view", "30", "-o", str(out))
     assert proc.returncode == 2 and len(lines) == 1 and "1000 x 640" in lines[0] and "500 x 320" in lines[0]
-    assert not any(out.iterdir())
+    assert not out.exists()  # the folder made for the outputs is not left behind
 
 
 def test_an_unwritable_output_folder_is_refused_before_any_work(tmp_path):
@@ -205,10 +205,14 @@ def test_the_keypoints_names_correct_the_classifier_s_side(tmp_path):
     proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(tmp_path / "k.json"), "--view", "30",
                        "-o", str(tmp_path / "out"))
     assert proc.returncode == 2 and len(lines) == 1 and "other side" in lines[0]
-    assert not any((tmp_path / "out").iterdir())
+    assert not (tmp_path / "out").exists()
     # the example's own marks (a front three-quarter view) told the rear three-quarter view
     proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(KEYPOINTS), "--view", "rear 30", "-o", str(tmp_path / "out"))
     assert proc.returncode == 2 and len(lines) == 1 and "other end" in lines[0] and "30°" in lines[0]
+    # … and told the side view: refused naming the view they fit (the check all round the car)
+    proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(KEYPOINTS), "--view", "90", "-o", str(tmp_path / "out"))
+    assert proc.returncode == 2 and len(lines) == 1 and "fit a view of 30° far better" in lines[0], lines
+    assert not (tmp_path / "out").exists()
 
 
 def _marks_seen_from(truth_mm: np.ndarray, azimuth: float, size=(1000, 640), noise: float = 1.0) -> dict:

@@ -982,7 +982,7 @@ def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarra
     azimuth = round(best.view.azimuth) % 360
     raise SideError(f"the marks fit a view of {azimuth:g}° far better than the {given.azimuth:g}° given "
                     f"(−log evidence {there:.0f} against {here:.0f}): give that view, or leave it to "
-                    "the view classifier (`carbody reconstruct`)", float(azimuth))
+                    "the view classifier (`carbody reconstruct` without --view)", float(azimuth))
 
 
 #: A focal length (pixels) under this fraction of the photo's diagonal (taken as twice the
