@@ -511,7 +511,10 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
         AngleError: a view outside 0–360°.
-        SideError: the keypoints' names are of the car's other side (:func:`_check_side`).
+        SideError: the keypoints' names are of the car's other side (:func:`_check_side`), they
+            fit its other end far better (:func:`_check_end`), or a refined view that fits them
+            poorly or stopped at the edge of its search is far from one that fits them soundly
+            (:func:`_check_elsewhere`); ``azimuth`` names that view.
         FitError: an unknown method or a bad wheelbase, or keypoints no model can match.
     """
     from carbody.camera import check_azimuth
