@@ -181,7 +181,8 @@ def run_fit(args: argparse.Namespace) -> int:
                            focal_px=focal, check_orthographic=True,
                            name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
-    report = build_report(result, truth, image=args.image)
+    # (the photo plane reads the photo again: only for a report that is written)
+    report = build_report(result, truth, image=args.image if args.report else None)
 
     write_wireframe(args.output, result.wireframe, both_halves=True)
     if overlay is not None:

@@ -24,6 +24,7 @@ from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERAT
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
+from carbody.view.labels import angular_difference
 from carbody.wireframe import MIRROR, RIGHT_SUFFIX, Wireframe
 
 #: Library preparations kept per process (keypoint rows, shape models), keyed by the S array.
@@ -215,15 +216,11 @@ MAX_VIEW_WALKS = 2
 
 def _walked(search_view: View, azimuth: float) -> bool:
     """Whether a fit started at ``azimuth`` searched again around another view (``MAX_VIEW_WALKS``)."""
-    from carbody.view.labels import angular_difference
-
     return bool(angular_difference(search_view.azimuth, azimuth) > 1e-9)
 
 
 def _at_search_edge(view: View, centre: View) -> bool:
     """Whether ``view``'s azimuth lies at the edge of the range searched around ``centre``'s."""
-    from carbody.view.labels import angular_difference
-
     return bool(angular_difference(view.azimuth, centre.azimuth) > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG)
 
 #: A mark is suspect when its residual exceeds this many times the median residual …
@@ -936,7 +933,7 @@ def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarra
     ``ELSEWHERE_STEP_DEG`` are fitted unrefined, the best ``ELSEWHERE_REFINED`` refined. One
     that beats the fit by ``END_EVIDENCE_MARGIN`` −log evidence within the range searched
     around the view given (its refinement settled in a worse place, as a pinhole photo fitted
-    as orthographic can) is refitted there and returned; one further off that also fits
+    as orthographic can) is taken instead (deformed as the fit would have been); one further off that also fits
     soundly (``END_SUSPECT_EVIDENCE``) is refused. A sound fit costs nothing more, and a view
     not to be refined (``refine`` False) is the user's: not checked.
 
@@ -945,15 +942,9 @@ def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarra
     Raises:
         SideError: naming the view further off.
     """
-    from dataclasses import replace
-
-    from carbody.view.labels import angular_difference
-
-    given = marks["view"]
-    here = view_score(result.solution)
-    level = END_SUSPECT_EVIDENCE * 2 * len(slots)
-    if result.method == "paper" or not marks["refine"] or (here <= level and not result.view_at_search_edge):
+    if result.method == "paper" or not marks["refine"] or not (result.fits_poorly or result.view_at_search_edge):
         return result
+    given = marks["view"]
     fitted = (given.azimuth, result.view.azimuth)
     scanned = []
     for azimuth in np.arange(0.0, 360.0, ELSEWHERE_STEP_DEG):
@@ -973,14 +964,14 @@ def _check_elsewhere(result: FitResult, slots: list[KeypointSlot], uv: np.ndarra
             continue
         if best is None or view_score(fit.solution) < view_score(best.solution):
             best = fit
-    if best is None or not view_score(best.solution) < here - END_EVIDENCE_MARGIN:
+    here, there = view_score(result.solution), None if best is None else view_score(best.solution)
+    if there is None or not there < here - END_EVIDENCE_MARGIN:
         return result
-    there = view_score(best.solution)
     if angular_difference(best.view.azimuth, given.azimuth) <= AZIMUTH_RANGE_DEG:
-        near = _fit_marks(slots, uv, **{**marks, "view": replace(given, azimuth=best.view.azimuth)})
+        near = _deformed(best) if marks["deform"] else best  # the candidate's own fit, finished
         near.given_view = given
         return near
-    if there > level:
+    if best.fits_poorly:
         return result
     azimuth = round(best.view.azimuth) % 360
     raise SideError(f"the marks fit a view of {azimuth:g}° far better than the {given.azimuth:g}° given "
