@@ -108,18 +108,18 @@ def set_joint_field(joint: tuple[float, tuple | None, bool] | None,
     deformation's broad part joins the prior instead of its local one, and the correlation
     lengths of the post-fit deformation's local part (None: ``LOCAL_LENGTH``)."""
     import carbody.fit.deform as deform
-    import carbody.fit.single_view as single_view
+    import carbody.fit.shape_prior as shape_prior
 
     if deform_length is not None:
         deform.LOCAL_LENGTH = deform_length
     if joint is None:
         return
 
-    single_view.JOINT_FIELD_AMPLITUDE = joint[0]
+    shape_prior.JOINT_FIELD_AMPLITUDE = joint[0]
     if joint[1] is not None:
         deform.JOINT_LENGTH = joint[1]
     if joint[2]:
-        single_view.joint_field_basis = lambda reference, topology: deform._field_basis(
+        shape_prior.joint_field_basis = lambda reference, topology: deform._field_basis(
             reference, topology, (deform.FIELD_SIGMA,) * 3, deform.FIELD_LENGTH)
 
 
@@ -267,7 +267,7 @@ def run_other_end(args) -> list[dict]:
 def other_end_table(rows: list[dict]) -> str:
     """``--other-end``: refusals and −log evidence per coordinate, told the true view or the
     other end."""
-    from carbody.fit.single_view import END_SUSPECT_EVIDENCE
+    from carbody.fit.result import END_SUSPECT_EVIDENCE
 
     out = [f"| told | fits | refused | of them naming the true view | failed otherwise | −log evidence per "
            f"coordinate, check off: min / median / max | above {END_SUSPECT_EVIDENCE:g} (checked) |",
@@ -694,7 +694,7 @@ def main(argv=None) -> int:
             ap.error("--joint-field takes an amplitude ≥ 0, optionally followed by three lengths")
         joint = (values[0], tuple(values[1:]) or None, args.broad_joint_field)
     elif args.broad_joint_field:
-        from carbody.fit.single_view import JOINT_FIELD_AMPLITUDE
+        from carbody.fit.shape_prior import JOINT_FIELD_AMPLITUDE
 
         joint = (JOINT_FIELD_AMPLITUDE, None, True)
 

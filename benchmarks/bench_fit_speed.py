@@ -60,7 +60,8 @@ def main(argv=None) -> int:
     from scipy.optimize import lsq_linear, nnls
 
     from carbody.camera import View, project
-    from carbody.fit.single_view import fit_wireframe, prepared
+    from carbody.fit.shape_prior import prepared
+    from carbody.fit.single_view import fit_wireframe
     from carbody.fit.solve import KeypointBasis, _centred, solve_gauss, solve_simplex
     from carbody.fit.visibility import visible_slots
     from carbody.library import load_library

@@ -160,7 +160,7 @@ def main() -> int:
     import os
 
     load = os.getloadavg()[0]
-    print(f"\n## Surfaces (`benchmarks/bench_surface.py`)\n")
+    print("\n## Surfaces (`benchmarks/bench_surface.py`)\n")
     print(f"{len(rows)} templates; 2-core machine, load average {load:.1f} during the run "
           f"(other jobs share the cores).\n")
     print("Wireframe STEP -> body STEP, seconds per body (warm process):\n")

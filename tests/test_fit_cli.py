@@ -253,7 +253,7 @@ def test_a_view_given_far_off_is_refused_naming_the_view_and_marks_no_view_fits_
     edge of the ±25° searched (35°), the refinement searches again around it and lands on 30°:
     no note. Told 30°, none either. The same marks with their names shuffled fit no view: the
     fit is written with a note that no car fits them, and the report's evidence says how badly."""
-    from carbody.fit.single_view import END_SUSPECT_EVIDENCE
+    from carbody.fit.result import END_SUSPECT_EVIDENCE
     from tests.conftest import REPO
 
     out = tmp_path / "car.step"

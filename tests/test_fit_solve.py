@@ -298,7 +298,7 @@ def test_a_told_wheelbase_gives_a_level_side_view_its_width(library, topology, t
     """A level side view shows no width. In wheelbases the pickup is narrow and the roadster
     wide, so a prior in those units guesses them wrong; told the wheelbase, the fit knows widths
     in mm, where cars differ far less."""
-    from carbody.fit.single_view import sized_shape_model
+    from carbody.fit.shape_prior import sized_shape_model
 
     t, loo, truth = _left_out(library, template)
     wb = library.template_wheelbase_mm[t]
@@ -319,7 +319,7 @@ def test_a_side_view_is_not_refined_into_a_narrow_car(library, topology):
     sin(elevation)); for a car unlike the library's (the 911, left out) the prior alone let the
     refinement settle at 33° as a car 0.6 m wide. The extent charge keeps it a car (1.6 m wide
     at 11°; it is 1.85 m at 10°)."""
-    from carbody.fit.single_view import implausibility
+    from carbody.fit.shape_prior import implausibility
 
     t, loo, truth = _left_out(library, "Porsche 911 Carrera 992")
     wb = float(library.template_wheelbase_mm[t])
@@ -403,7 +403,7 @@ def test_the_joint_field_keeps_a_near_side_view_from_widening_the_car(library, t
     along the car: where the left-out saloon's features sit off every template's along the car,
     the library's span alone bends into a car ~10 % too wide to place them; with the local
     deformation field in the solve (JOINT_FIELD_AMPLITUDE) they move along the car instead."""
-    import carbody.fit.single_view as single_view
+    import carbody.fit.shape_prior as shape_prior
 
     t, loo, truth = _left_out(library, "Tesla Model 3")
     wb = float(library.template_wheelbase_mm[t])
@@ -418,8 +418,8 @@ def test_the_joint_field_keeps_a_near_side_view_from_widening_the_car(library, t
         return 2 * res.wireframe.control_points[:, 0].max(), error
 
     width, error = fitted()
-    monkeypatch.setattr(single_view, "_PREPARED", {})
-    monkeypatch.setattr(single_view, "JOINT_FIELD_AMPLITUDE", 0.0)
+    monkeypatch.setattr(shape_prior, "_PREPARED", {})
+    monkeypatch.setattr(shape_prior, "JOINT_FIELD_AMPLITUDE", 0.0)
     width_alone, error_alone = fitted()
     assert abs(width / true_width - 1) < 0.05 and error < 30, (width, true_width, error)
     assert width_alone > 1.1 * true_width and error_alone > 2.5 * error, (width_alone, error_alone)
@@ -705,7 +705,7 @@ def test_the_fitted_car_s_regions_can_all_be_surfaced(library, monkeypatch, temp
     region could not be surfaced (a photo from 7 m, 6° up, the car left out of the library).
     With the fields moving inner poles on their own, the region crosses itself again."""
     import carbody.fit.deform as deform
-    import carbody.fit.single_view as single_view
+    import carbody.fit.shape_prior as shape_prior
     from carbody.errors import SurfaceError
     from carbody.fit.solve import car_centre
     from carbody.surface.regions import boundary_samples, region_outlines
@@ -726,7 +726,7 @@ def test_the_fitted_car_s_regions_can_all_be_surfaced(library, monkeypatch, temp
     fit = fit_wireframe(marks, View(azimuth, 6.0), loo, camera_distance_mm="auto")
     assert crossed(fit) == []
     monkeypatch.setattr(deform, "carried_by_curve_ends", lambda basis: basis)
-    monkeypatch.setattr(single_view, "_PREPARED", {})
+    monkeypatch.setattr(shape_prior, "_PREPARED", {})
     assert region in crossed(fit_wireframe(marks, View(azimuth, 6.0), loo, camera_distance_mm="auto"))
 
 

@@ -12,12 +12,14 @@ Public API::
 Modules: :mod:`~carbody.camera` (the SPEC camera and eq. 1), :mod:`~carbody.fit.keypoints_io`
 (annotation files, names, checks), :mod:`~carbody.fit.visibility` (what a view can see),
 :mod:`~carbody.fit.solve` (the weight solve), :mod:`~carbody.fit.refine` (view refinement),
-:mod:`~carbody.fit.single_view` (the whole stage), :mod:`~carbody.fit.overlay` and
+:mod:`~carbody.fit.shape_prior` (the shape prior), :mod:`~carbody.fit.single_view` (the whole
+stage), :mod:`~carbody.fit.result` (what it returns), :mod:`~carbody.fit.overlay` and
 :mod:`~carbody.fit.report` (outputs), :mod:`~carbody.fit.cli` (``carbody fit``).
 """
 from carbody.camera import View, eq1_angles, eq1_rotation, project, view_rotation
 from carbody.fit.keypoints_io import Annotation, check_keypoints, keypoint_slots, read_keypoints
-from carbody.fit.single_view import FitResult, fit_wireframe
+from carbody.fit.result import FitResult
+from carbody.fit.single_view import fit_wireframe
 from carbody.fit.visibility import visible_keypoints
 
 __all__ = [

@@ -17,7 +17,7 @@ curves stay smooth and joined. The field is the sum of two squared-exponential p
   on its line of sight.
 
 The local part also sits in the shape prior itself, at a fraction of its amplitude and
-correlated right across the car (``JOINT_FIELD_AMPLITUDE`` in :mod:`carbody.fit.single_view`,
+correlated right across the car (``JOINT_FIELD_AMPLITUDE`` in :mod:`carbody.fit.shape_prior`,
 :func:`joint_field_basis`), solved with the mix: a feature off every template along the car is
 then taken up there already, not by bending the whole mix to reach it (on a near-side view, by
 making the car wider). This stage follows what is left.
@@ -144,7 +144,7 @@ class DeformationField:
 
 def joint_field_basis(reference: np.ndarray, topology: Topology) -> np.ndarray:
     """(3·P, q) the local part's basis as it joins the shape prior: ``LOCAL_SIGMA``, correlated
-    over ``JOINT_LENGTH`` (see :data:`carbody.fit.single_view.JOINT_FIELD_AMPLITUDE`)."""
+    over ``JOINT_LENGTH`` (see :data:`carbody.fit.shape_prior.JOINT_FIELD_AMPLITUDE`)."""
     return _field_basis(reference, topology, LOCAL_SIGMA, JOINT_LENGTH)
 
 

@@ -1,6 +1,6 @@
 """The overlay picture (paper Fig. 9–10): photo, annotated (red) and reprojected (green)
 keypoints, and the fitted wireframe projected with the refined camera; marks the fit cannot
-follow (:meth:`~carbody.fit.single_view.FitResult.suspect_keypoints`) ringed in magenta, and
+follow (:meth:`~carbody.fit.result.FitResult.suspect_keypoints`) ringed in magenta, and
 marks left out as misplaced (``FitResult.rejected_uv``) crossed out in magenta, joined to where
 the fitted car puts them."""
 from __future__ import annotations
@@ -17,7 +17,7 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
 
     Args:
         image: (h, w, 3) uint8 BGR photo.
-        result: a :class:`carbody.fit.single_view.FitResult`.
+        result: a :class:`carbody.fit.result.FitResult`.
         labels: write each keypoint's number next to it.
     """
     import cv2

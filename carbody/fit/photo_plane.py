@@ -130,7 +130,7 @@ def side_plane(image_path: str | Path, width_mm: float = 5000.0) -> PhotoPlane:
 
 
 def fitted_plane(result, image_path: str | Path) -> PhotoPlane:
-    """The photo lined up with a fit (a :class:`~carbody.fit.single_view.FitResult` of it),
+    """The photo lined up with a fit (a :class:`~carbody.fit.result.FitResult` of it),
     behind the car: looking along the fitted camera, each of the car's control points falls
     where the fit reprojects it on the photo.
 

@@ -9,7 +9,7 @@ out) when it has one (the Gaussian-prior methods; Nelder–Mead), else its resid
 solve; bounded Gauss–Newton, trust-region reflective least squares). In an orthographic image
 the azimuth trades off against the car's depth, so the residual alone prefers views where the
 shape can bend to fit; the evidence charges for that freedom. The fit adds a charge for a car
-wider, longer or taller than any template (:func:`carbody.fit.single_view.implausibility`):
+wider, longer or taller than any template (:func:`carbody.fit.shape_prior.implausibility`):
 the Gaussian prior alone lets a side view steepen into a car a third as wide.
 
 Roll stays as given (level) by default: one orthographic view of a car whose shape is also being

@@ -6,437 +6,33 @@ return the new model in millimetres with everything the overlay and the report n
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from functools import partial
-from pathlib import Path
 
 import numpy as np
 
+from carbody.camera import View, apply_homography, degrees_from_axis, look_at_homography, perspective_factors, project
 from carbody.errors import AngleError, FitError, SideError
-from carbody.camera import (View, apply_homography, degrees_from_axis, look_at_homography, perspective_factors,
-                            project)
-from carbody.fit.deform import DeformationField, joint_field_basis
 from carbody.fit.keypoints_io import KeypointSlot, check_keypoints, keypoint_slots
 from carbody.fit.refine import AZIMUTH_RANGE_DEG, DEFAULT_FREE, PERSPECTIVE_LENGTH, refine_view, view_score
-from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERATIONS, KeypointBasis,
-                               MixSolution, ShapeModel, car_centre, keypoint_covariance, keypoint_spread,
-                               solve_gauss, solve_simplex)
+from carbody.fit.result import END_SUSPECT_EVIDENCE, FitResult, at_search_edge
+from carbody.fit.shape_prior import implausibility, library_mean, prepared, prepared_field
+from carbody.fit.solve import (DEFAULT_PRIOR_WEIGHT, METHODS, PERSPECTIVE_ITERATIONS, MixSolution, ShapeModel,
+                               car_centre, keypoint_covariance, keypoint_spread, solve_gauss, solve_simplex)
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
 from carbody.view.labels import angular_difference
 from carbody.wireframe import MIRROR, RIGHT_SUFFIX, Wireframe
 
-#: Library preparations kept per process (keypoint rows, shape models), keyed by the S array.
-_PREPARED: dict[tuple, object] = {}
-
-
-def prepared(library: Library, method: str, wheelbase_mm: float | None = None, field: bool = True):
-    """The library's :class:`KeypointBasis` (``"paper"``) or :class:`ShapeModel` (``"gauss"``),
-    built once per library and method; told the car's wheelbase, the shape model of cars sized
-    in mm (:func:`sized_shape_model`). The shape models carry the local deformation field
-    (``JOINT_FIELD_AMPLITUDE``) unless ``field`` is False (the library's span alone)."""
-    method = "gauss" if method == "mixture" else method  # same shape model
-    idx = load_topology().keypoint_point_indices
-    if method == "paper":
-        return _cached(library, method, lambda: KeypointBasis.from_shapes(library.S, idx))
-    if wheelbase_mm is None:
-        key = (method,)
-        model = _cached(library, method, lambda: ShapeModel.from_shapes(
-            library.S, idx, groups=library.template_index, keep=real_widths(library)))
-    else:
-        key = ("sized", float(wheelbase_mm))
-        model = _cached(library, key, lambda: sized_shape_model(library, wheelbase_mm))
-    return _cached(library, key + ("field",), lambda: model.with_field(_joint_field(library))) if field else model
-
-
-#: The local part of the photo-matching deformation (:mod:`carbody.fit.deform`: features moved
-#: along the car) joins the Gaussian shape prior at this fraction of its amplitude, correlated
-#: right across the car (:func:`~carbody.fit.deform.joint_field_basis`), solved with the mix. A
-#: car's pillar or window end that sits off every template's is then taken up there, not by
-#: bending the whole mix (on a near-side view, a car made 10 % wider moves such a point in the
-#: image as well). Chosen on the leave-one-out benchmark (BENCHMARKS.md; ``bench_fit_accuracy.py
-#: --joint-field A`` reruns 0.2–0.7: larger lowers the level mean, raises the 10° one and the
-#: pickup's max; the broad part instead was worse); the deformation after the fit is unchanged.
-JOINT_FIELD_AMPLITUDE = 0.3
-
-
-#: Fraction of the joint field's variance at the keypoints its basis keeps.
-JOINT_FIELD_ENERGY = 0.999
-
-
-def _joint_field(library: Library) -> np.ndarray:
-    """(840, q') the local deformation field's basis at ``JOINT_FIELD_AMPLITUDE``, turned to
-    the directions that move the keypoints (the solve sees nothing else; the rest would stay at
-    their prior mean, 0), strongest first, to ``JOINT_FIELD_ENERGY``."""
-    if JOINT_FIELD_AMPLITUDE == 0:
-        return np.zeros((library.S.shape[0], 0))
-
-    def build() -> np.ndarray:
-        topology = load_topology()
-        field = JOINT_FIELD_AMPLITUDE * joint_field_basis(library_mean(library), topology)
-        at_keypoints = field.reshape(-1, 3, field.shape[1])[topology.keypoint_point_indices]
-        _, sv, Wt = np.linalg.svd(at_keypoints.reshape(-1, field.shape[1]), full_matrices=False)
-        keep = int(np.searchsorted(np.cumsum(sv**2) / np.sum(sv**2), JOINT_FIELD_ENERGY)) + 1
-        return field @ Wt[:keep].T
-
-    return _cached(library, ("joint field", JOINT_FIELD_AMPLITUDE), build)
-
-
-def _cached(library: Library, what, build):
-    """``build()``, once per library (keyed by its S array) and ``what``."""
-    key = (id(library.S), library.S.shape, what)
-    if key not in _PREPARED:
-        if len(_PREPARED) > 16:
-            _PREPARED.clear()
-        _PREPARED[key] = (library.S, build())
-    return _PREPARED[key][1]
-
-
-#: Which coordinates (x, y, z) of a car the shape model told the wheelbase knows in mm rather
-#: than in wheelbases: the width and the height (a car is 1.7–2.0 m wide and about as tall as its
-#: class, whatever its wheelbase), not the length (overhangs and cabin grow with the wheelbase).
-SIZED_IN_MM = (True, False, True)
-
-#: The width expansions the Gaussian shape models are built from: the library's run 0.7–1.2 ×
-#: each template's width, far wider and narrower than real cars differ; those within this
-#: range keep the prior's width spread a real car's (BENCHMARKS.md: all did worse, 1.0 alone
-#: worse at 10° elevation). The paper's solve mixes all of them.
-REAL_WIDTH_FACTORS = (0.9, 1.1)
-
-
-def real_widths(library: Library) -> np.ndarray | None:
-    """(N,) bool: the library's models whose width factor lies within REAL_WIDTH_FACTORS
-    (None: none does, a library without such expansions; use all)."""
-    width = library.factors[:, 3]
-    keep = (width >= REAL_WIDTH_FACTORS[0] - 1e-9) & (width <= REAL_WIDTH_FACTORS[1] + 1e-9)
-    return keep if keep.any() else None
-
-
-def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
-    """The shape model for a car of a known wheelbase, in normalised units.
-
-    The library's models are normalised to a wheelbase of 1000, which also scales their widths
-    and heights by 1000 / their own wheelbase: the pickup (3.7 m) comes out narrow and low, the
-    roadster (2.3 m) wide and tall, so a prior in those units is loose exactly where a view
-    cannot see — the width on a side view, the size on a front one, and on a level view the
-    width that trades against the azimuth. Here the principal components are taken with widths
-    and heights in mm (``SIZED_IN_MM``) and lengths in wheelbases, then read at this car's
-    wheelbase (both from the models of :func:`real_widths`). A wrong
-    wheelbase therefore changes the car's shape, not only its size. Measured on the
-    leave-one-out benchmark (BENCHMARKS.md).
-    """
-    in_mm = np.tile(SIZED_IN_MM, library.S.shape[0] // 3)
-
-    def build() -> ShapeModel:
-        S = np.where(in_mm[:, None], library.S * (library.model_wheelbase_mm / NORMALISED_WHEELBASE), library.S)
-        return ShapeModel.from_shapes(S, load_topology().keypoint_point_indices, groups=library.template_index,
-                                      keep=real_widths(library))
-
-    model = _cached(library, "sized", build)
-    unit = np.where(in_mm, NORMALISED_WHEELBASE / wheelbase_mm, 1.0)
-    mean = model.mean * unit
-    size = keypoint_spread(mean.reshape(-1, 3)[load_topology().keypoint_point_indices])
-    return ShapeModel(mean=mean, basis=model.basis * unit[:, None], size=size, to_weights=model.to_weights,
-                      group_means=model.group_means, weight_offset=model.weight_offset)
-
-
-#: The scale (a fraction of the bound passed) on which a view is charged for a fitted car wider
-#: or narrower, longer or shorter, taller or lower than every template (see :func:`implausibility`).
-EXTENT_TOLERANCE = 0.02
-
-
-def implausibility(shape: np.ndarray, library: Library, wheelbase_mm: float | None = None) -> float:
-    """What a view is charged (nats, added to its evidence) for a fitted car whose overall
-    width, length or height lies outside the range of the templates' own cars (the published
-    ones, not their expansions, which reach 0.7 × the width): ½·Σ(excess / (EXTENT_TOLERANCE ×
-    bound))², in wheelbases and, with the wheelbase told, in mm as well.
-
-    The Gaussian prior lets a car seen almost side-on (or head-on) be fitted at a steeper
-    elevation as a far narrower (shorter) car: the width moves the marks by sin(elevation),
-    and a few prior standard deviations of width (the expansions span 0.7–1.2 ×) cost less than a few
-    pixels of misfit on a car unlike the library's. No car is 0.6 m wide; this says so.
-    Within the range nothing changes. The range and EXTENT_TOLERANCE were chosen on the
-    leave-one-out benchmark (BENCHMARKS.md); a wider range (templates ± 10 %) did worse.
-    """
-    extents = _extents(np.asarray(shape, dtype=float)[:, None])[:, 0]
-    low, high = _cached(library, "extents", lambda: _template_extents(library))
-    charge = _excess(extents, low[0], high[0])
-    if wheelbase_mm is not None:
-        charge += _excess(extents * (wheelbase_mm / NORMALISED_WHEELBASE), low[1], high[1])
-    return charge
-
-
-def _extents(S: np.ndarray) -> np.ndarray:
-    """(3, N): overall width (both halves), length and height of (840, N) shape vectors."""
-    P = S.reshape(-1, 3, S.shape[1])
-    return np.stack([2.0 * P[:, 0].max(axis=0), np.ptp(P[:, 1], axis=0), np.ptp(P[:, 2], axis=0)])
-
-
-def _template_extents(library: Library) -> tuple[np.ndarray, np.ndarray]:
-    """((2, 3) lowest, (2, 3) highest) width, length and height of the templates' own models,
-    in wheelbases (row 0, normalised units) and in mm (row 1)."""
-    cols = np.flatnonzero(np.all(library.factors == 1.0, axis=1))
-    if not len(cols):  # a library without its templates' own models: all of them
-        cols = np.arange(library.S.shape[1])
-    e = _extents(np.asarray(library.S[:, cols], dtype=float))
-    both = np.stack([e, e * (library.model_wheelbase_mm[cols] / NORMALISED_WHEELBASE)])
-    return both.min(axis=2), both.max(axis=2)
-
-
-def _excess(values: np.ndarray, low: np.ndarray, high: np.ndarray) -> float:
-    """½·Σ((how far each value lies outside [low, high]) / (EXTENT_TOLERANCE × the bound))²."""
-    below, above = np.maximum(low - values, 0.0) / low, np.maximum(values - high, 0.0) / high
-    return float(0.5 * np.sum(((below + above) / EXTENT_TOLERANCE) ** 2))
-
-
-def prepared_field(library: Library) -> DeformationField:
-    """The photo-matching deformation field around the library's mean model, built once."""
-    key = (id(library.S), library.S.shape, "field")
-    if key not in _PREPARED:
-        _PREPARED[key] = (library.S, DeformationField.around(library_mean(library), load_topology()))
-    return _PREPARED[key][1]
-
-
-def library_mean(library: Library) -> np.ndarray:
-    """(840,) float, the library's mean shape vector (normalised units), computed once."""
-    key = (id(library.S), library.S.shape, "mean")
-    if key not in _PREPARED:
-        _PREPARED[key] = (library.S, library.S.mean(axis=1, dtype=np.float64))
-    return _PREPARED[key][1]
-
-
-#: A refined azimuth within this many degrees of the refinement's range is at its edge …
-SEARCH_EDGE_DEG = 0.5
-
-#: … and the refinement is run again around it, at most this many times (a view given up to
-#: ~70° off; no end-to-end benchmark run reaches the edge).
+#: A refined view that stopped at the edge of the range searched (:func:`~carbody.fit.result.at_search_edge`)
+#: is searched again around, at most this many times (a view given up to ~70° off; no
+#: end-to-end benchmark run reaches the edge).
 MAX_VIEW_WALKS = 2
 
 
 def _walked(search_view: View, azimuth: float) -> bool:
     """Whether a fit started at ``azimuth`` searched again around another view (``MAX_VIEW_WALKS``)."""
     return bool(angular_difference(search_view.azimuth, azimuth) > 1e-9)
-
-
-def _at_search_edge(view: View, centre: View) -> bool:
-    """Whether ``view``'s azimuth lies at the edge of the range searched around ``centre``'s."""
-    return bool(angular_difference(view.azimuth, centre.azimuth) > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG)
-
-#: A mark is suspect when its residual exceeds this many times the median residual …
-SUSPECT_RESIDUAL_RATIO = 4.0
-
-#: … and this fraction of the marks' RMS spread about their centre (≈ 14 px for a car 900 px wide).
-SUSPECT_RESIDUAL_SPREAD = 0.05
-
-
-@dataclass
-class FitResult:
-    """A fitted car.
-
-    Attributes:
-        wireframe: the new model, left half, mm (car frame).
-        view: the refined view; ``given_view`` the one passed in.
-        solution: the mix at the refined view (normalised units).
-        slots: the annotated keypoints; ``uv`` their pixels (k, 2).
-        wheelbase_mm: the wheelbase the model was scaled to.
-        method: ``"mixture"``, ``"gauss"`` or ``"paper"``.
-        library: the library used (names for the report).
-        deformation_mm: largest control-point move of the photo-matching deformation, mm
-            (0 when it is off); the weights describe the mix before it.
-        to_photo: (3, 3) homography from the fitted camera's pixels to the photo's, when the
-            camera was turned to look at an off-centre car (see :func:`fit_wireframe`); the
-            solution's scale and offset are in the turned camera's pixels.
-        focal_px: the focal length that turn used, pixels (the known one, or the fit's).
-        camera_turn_deg: how far that turn swung the camera from the photo's optical axis to
-            the car's centre, degrees (0: no turn).
-        wheelbase_from: where ``wheelbase_mm`` came from: ``"told"``, ``"camera distance"``
-            (a told distance against the perspective's) or ``"library mix"`` (the fitted mix
-            of the templates' own wheelbases).
-        rejected_px: marks left out as misplaced ({name: how far the fitted car passes from
-            it, px}); not in ``slots``. ``rejected_uv``: their pixels; ``rejected_looks_like``:
-            {mark: the keypoint the fitted car puts where it was clicked}, when one is near.
-        swapped_names: a left/right pair of marks fitted with their names exchanged (both
-            misplaced as named, both fitting swapped), or None.
-        solve_residual_px: (k,) the marks' residuals before the deformation (None: no
-            deformation, see ``solution.residual_px``).
-        joint_field: whether the solve had the local displacement field in its prior.
-        search_view: the view the refinement last searched around (the given one, or, when the
-            view settled at the edge of that range, where it settled: ``MAX_VIEW_WALKS``).
-        orthographic_check: an orthographic fit asked to check (``check_orthographic``): its
-            marks fitted with the camera's distance found, against it (:func:`_orthographic_check`:
-            ``camera_distance_mm`` found, ``residual_px_mean`` of that fit and
-            ``orthographic_residual_px_mean``, both before the deformation,
-            ``evidence_gain_per_coordinate``, and ``closer_camera``: whether that camera fits
-            them far better); else None. ``closer_camera`` (property): that check when it says so.
-    """
-
-    wireframe: Wireframe
-    view: View
-    given_view: View
-    solution: MixSolution
-    slots: list[KeypointSlot]
-    uv: np.ndarray
-    wheelbase_mm: float
-    method: str
-    library: Library = field(repr=False)
-    deformation_mm: float = 0.0
-    to_photo: np.ndarray | None = None
-    focal_px: float | None = None
-    camera_turn_deg: float = 0.0
-    wheelbase_from: str = "library mix"
-    rejected_px: dict[str, float] = field(default_factory=dict)
-    rejected_uv: dict[str, tuple[float, float]] = field(default_factory=dict)
-    rejected_looks_like: dict[str, str] = field(default_factory=dict)
-    swapped_names: tuple[str, str] | None = None
-    solve_residual_px: np.ndarray | None = field(default=None, repr=False)
-    joint_field: bool = True
-    orthographic_check: dict | None = None
-    search_view: View | None = None
-
-    @property
-    def evidence_per_coordinate(self) -> float | None:
-        """The fit's −log evidence per marked coordinate (Gaussian-prior methods; None for the
-        paper's solve): ≤ 6.1 on the leave-one-out cars' own marks at their views, with 1 or 5 px
-        of noise (BENCHMARKS.md, ``--other-end``), ≤ 8.2 over the end-to-end runs (the pickup's
-        stiffer refits; ``bench_end_to_end.py``); above ``END_SUSPECT_EVIDENCE`` no car near the
-        view fits the marks (:meth:`fits_poorly`; a view elsewhere that fits them soundly is
-        refused naming it, :func:`_check_elsewhere`)."""
-        evidence = self.solution.evidence
-        return None if evidence is None else float(evidence) / (2 * len(self.slots))
-
-    @property
-    def fits_poorly(self) -> bool:
-        """No car near the refined view fits the marks (``evidence_per_coordinate`` above
-        ``END_SUSPECT_EVIDENCE``): marks named wrongly, or a view kept unrefined far off (a
-        refined one is refused when a view elsewhere fits soundly, :func:`_check_elsewhere`)."""
-        value = self.evidence_per_coordinate
-        return value is not None and value > END_SUSPECT_EVIDENCE
-
-    @property
-    def view_at_search_edge(self) -> bool:
-        """The refined azimuth settled at the edge of the range the refinement last searched
-        (``AZIMUTH_RANGE_DEG`` around ``search_view``, after ``MAX_VIEW_WALKS`` searches moved
-        on): the photo's view likely lies further off."""
-        return _at_search_edge(self.view, self.search_view or self.given_view)
-
-    @property
-    def closer_camera(self) -> dict | None:
-        """The orthographic check (``orthographic_check``) when a camera close by fits the marks
-        far better, else None."""
-        check = self.orthographic_check
-        return check if check is not None and check["closer_camera"] else None
-
-    @property
-    def mm_per_unit(self) -> float:
-        return self.wheelbase_mm / NORMALISED_WHEELBASE
-
-    @property
-    def camera_distance_mm(self) -> float | None:
-        """A pinhole view's camera distance from the car's centre, mm (None: orthographic)."""
-        return None if self.view.distance is None else float(self.view.distance * self.mm_per_unit)
-
-    def keypoints_mm(self) -> dict[str, list[float]]:
-        """{name: [x, y, z] mm} of the 35 left keypoints and the mirrors of those annotated."""
-        out = self.wireframe.keypoints()
-        for s in self.slots:
-            if s.is_mirror:
-                out[s.name] = [float(v) for v in self.wireframe.control_points[s.point_index] * s.sign]
-        return out
-
-    def keypoint_sd_mm(self) -> dict[str, list[float]] | None:
-        """{name: [σx, σy, σz] mm}: how far each keypoint of :meth:`keypoints_mm` may be off,
-        one standard deviation per axis, from the Gaussian-prior solve's posterior
-        (:func:`~carbody.fit.solve.keypoint_covariance`): small where the marks pin a
-        keypoint, the library's spread where the view cannot see it (the length on a front
-        view, the width on a level side view). None for the ``"paper"`` method."""
-        post = self.solution.posterior
-        if post is None:
-            return None
-        cov = keypoint_covariance(post)
-        sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None)) * self.mm_per_unit
-        names = [k.name for k in load_topology().keypoints]
-        out = {n: [float(v) for v in row] for n, row in zip(names, sd)}
-        for s in self.slots:
-            if s.is_mirror:
-                out[s.name] = out[s.name.removesuffix("_right")]
-        return out
-
-    def expected_error_mm(self, keypoint_sd_mm: dict[str, list[float]] | None = None) -> dict[str, float] | None:
-        """{name: √(σx² + σy² + σz²) mm} of the 35 left keypoints: the fit's own estimate of
-        each keypoint's 3D error (from ``keypoint_sd_mm``, default :meth:`keypoint_sd_mm`);
-        None for ``"paper"``."""
-        sd = self.keypoint_sd_mm() if keypoint_sd_mm is None else keypoint_sd_mm
-        if sd is None:
-            return None
-        return {k.name: float(np.linalg.norm(sd[k.name])) for k in load_topology().keypoints}
-
-    def draw_expected_errors(self, path: str | Path) -> Path:
-        """Write a PNG of the fitted car in four views, each keypoint coloured by its expected
-        error with its 1σ ellipse (:func:`carbody.templates.drawing.draw_four_views`).
-
-        Raises:
-            FitError: the ``"paper"`` method, which has no posterior.
-        """
-        from carbody.templates.drawing import draw_four_views
-
-        sd = self.keypoint_sd_mm()
-        if sd is None:
-            raise FitError("expected errors need a Gaussian-prior method (mixture or gauss): "
-                           "the paper's solve has no posterior")
-        return draw_four_views(self.wireframe.control_points, path, self.wireframe.name,
-                               keypoint_sd_mm=np.array([sd[k.name] for k in load_topology().keypoints]))
-
-    def reprojected(self) -> np.ndarray:
-        """(k, 2) float, pixels of the fitted annotated keypoints under the refined camera."""
-        pts = np.array([self.wireframe.control_points[s.point_index] * s.sign for s in self.slots])
-        return self.project_points(pts)
-
-    def residuals_px(self) -> dict[str, float]:
-        """{name: reprojection distance, px} per annotated keypoint."""
-        d = np.linalg.norm(self.reprojected() - self.uv, axis=1)
-        return {s.name: float(e) for s, e in zip(self.slots, d)}
-
-    def suspect_keypoints(self) -> list[str]:
-        """Marks the fit cannot follow, worst first: a reprojection residual over
-        ``SUSPECT_RESIDUAL_RATIO`` × the median and over ``SUSPECT_RESIDUAL_SPREAD`` × the marks'
-        spread (a mark in the wrong place, or two names swapped)."""
-        res = self.residuals_px()
-        spread = keypoint_spread(self.uv)
-        limit = max(SUSPECT_RESIDUAL_RATIO * float(np.median(list(res.values()))),
-                    SUSPECT_RESIDUAL_SPREAD * spread)
-        return sorted((n for n, r in res.items() if r > limit), key=lambda n: -res[n])
-
-    def marks_in_fit_camera(self) -> np.ndarray:
-        """(k, 2) the marks in the fitted camera's pixels: ``uv``, or, when the camera was turned
-        toward an off-centre car, ``uv`` taken back through the turn."""
-        return self.uv if self.to_photo is None else apply_homography(np.linalg.inv(self.to_photo), self.uv)
-
-    def project_points(self, points_mm: np.ndarray) -> np.ndarray:
-        """(..., 2) pixels of car-frame points (mm) under the fitted camera."""
-        uv = project(np.asarray(points_mm) / self.mm_per_unit, self.view, self.solution.scale,
-                     self.solution.offset)
-        return uv if self.to_photo is None else apply_homography(self.to_photo, uv)
-
-    def top_weights(self, n: int = 10) -> list[dict]:
-        """The n library models of largest |weight|: template, expansion factors, weight."""
-        H = self.solution.H
-        if H is None:
-            return []
-        order = np.argsort(-np.abs(H))[:n]
-        lib = self.library
-        return [{"model": int(j), "template": lib.template_names[lib.template_index[j]],
-                 "factors": dict(zip(("height", "front_overhang", "rear_overhang", "width"),
-                                     (float(f) for f in lib.factors[j]))),
-                 "weight": float(H[j])} for j in order if H[j] != 0]
-
-    def template_mix(self) -> dict[str, float]:
-        """{template: summed weight of its models}; sums to 1."""
-        H = self.solution.H
-        if H is None:
-            return {}
-        sums = np.bincount(self.library.template_index, weights=H, minlength=len(self.library.template_names))
-        return {n: float(w) for n, w in zip(self.library.template_names, sums)}
 
 
 def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
@@ -456,8 +52,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
         image_size: (width, height) px; keypoints off the image are refused.
         wheelbase_mm: real wheelbase; default the fitted mix of the templates' own. Told, the
             Gaussian-prior methods also know the car's width and height in mm
-            (:func:`sized_shape_model`), so a wrong one bends the shape a little, not only
-            its size.
+            (:func:`~carbody.fit.shape_prior.sized_shape_model`), so a wrong one bends the shape
+            a little, not only its size.
         method: ``"mixture"`` (a Gaussian shape prior around each template, default),
             ``"gauss"`` (one around the library mean) or ``"paper"`` (plain ΣH = 1,
             0 ≤ H ≤ 1); see :mod:`carbody.fit.solve`.
@@ -851,10 +447,8 @@ def _check_side(slots: list[KeypointSlot], view: View, library: Library) -> tupl
 
 #: Within this many degrees of the front or rear, a fit is checked against the car's other end
 #: (θ ↔ 180° − θ) when the marks' names say so or its −log evidence exceeds this per coordinate
-#: (Gaussian-prior methods; set between the leave-one-out templates' fits at their true view and
-#: at the other end, which lie well apart: ``test_a_view_given_for_the_car_s_other_end_is_refused``) …
+#: (``END_SUSPECT_EVIDENCE``, Gaussian-prior methods) …
 END_CHECK_DEG = 60.0
-END_SUSPECT_EVIDENCE = 10.0
 
 #: … and the other end is taken for the photo's when the fit there is sound (within
 #: ``END_SUSPECT_EVIDENCE``) and beats the given view's by this much −log evidence (on those
@@ -1183,7 +777,7 @@ def _fit_checked(slots: list[KeypointSlot], uv: np.ndarray, view: View, library:
         # Stopped at the edge of the azimuths searched: the photo's view lies further off (a view
         # given 30° off, a classifier's neighbour's neighbour); search again around it.
         for _ in range(MAX_VIEW_WALKS if "azimuth" in free else 0):
-            if not _at_search_edge(refined, centre):
+            if not at_search_edge(refined, centre):
                 break
             centre = refined if sol.view is None else sol.view
             refined, sol = refine_view(solve_at, centre, free=free, scan=True, scan_at=scan_at)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -217,7 +218,7 @@ def face_names(body: Body) -> list[str]:
     return [f"{p.region}{'_right' if p.mirror else ''}_{p.index}" for p in body.patches]
 
 
-def write_body(path, body: Body) -> "Path":
+def write_body(path, body: Body) -> Path:
     """Write a body as AP214 STEP (mm): one shell, faces named and coloured by region."""
     from carbody.occ.step_body import write_body_step
 

@@ -268,7 +268,6 @@ def skeleton_line(points: np.ndarray, pairs: list[OptimalPair], start: int, end:
     Returns:
         (len(pairs) + 2, 2) float.
     """
-    n = len(points)
     seg = np.linalg.norm(np.roll(points, -1, axis=0) - points, axis=1)
     arc = np.concatenate([[0.0], np.cumsum(seg)])
     total = arc[-1]

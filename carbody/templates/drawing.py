@@ -26,7 +26,7 @@ def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "
         path: PNG file to write (written whole or not at all).
         title: heading of the drawing (the car's name).
         keypoint_sd_mm: (35, 3) float or None: each keypoint's standard deviation per axis (a
-            fit's :meth:`~carbody.fit.single_view.FitResult.keypoint_sd_mm`): the keypoints are
+            fit's :meth:`~carbody.fit.result.FitResult.keypoint_sd_mm`): the keypoints are
             coloured by their expected 3D error (a colour bar gives the scale) and each gets its
             1σ ellipse in every view — which of the car's dimensions the photo fixed and which
             are the library's guess.

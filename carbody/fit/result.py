@@ -1,0 +1,254 @@
+"""A fitted car: :class:`FitResult`, what :func:`carbody.fit.single_view.fit_wireframe`
+returns — the wireframe in mm, the refined camera, the mix, and what the report, the overlay and
+the uncertainty picture read from them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from carbody.camera import View, apply_homography, project
+from carbody.errors import FitError
+from carbody.fit.keypoints_io import KeypointSlot
+from carbody.fit.refine import AZIMUTH_RANGE_DEG
+from carbody.fit.solve import MixSolution, keypoint_covariance, keypoint_spread
+from carbody.library import Library
+from carbody.tolerances import NORMALISED_WHEELBASE
+from carbody.topology import load_topology
+from carbody.view.labels import angular_difference
+from carbody.wireframe import Wireframe
+
+#: A Gaussian-prior fit whose −log evidence per marked coordinate exceeds this fits its marks
+#: poorly (:attr:`FitResult.fits_poorly`): set between the leave-one-out templates' fits at
+#: their true view and at the car's other end, which lie well apart
+#: (``test_a_view_given_for_the_car_s_other_end_is_refused``).
+END_SUSPECT_EVIDENCE = 10.0
+
+#: A refined azimuth within this many degrees of the refinement's range is at its edge …
+SEARCH_EDGE_DEG = 0.5
+
+
+def at_search_edge(view: View, centre: View) -> bool:
+    """Whether ``view``'s azimuth lies at the edge of the range searched around ``centre``'s."""
+    return bool(angular_difference(view.azimuth, centre.azimuth) > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG)
+
+
+
+#: A mark is suspect when its residual exceeds this many times the median residual …
+SUSPECT_RESIDUAL_RATIO = 4.0
+
+#: … and this fraction of the marks' RMS spread about their centre (≈ 14 px for a car 900 px wide).
+SUSPECT_RESIDUAL_SPREAD = 0.05
+
+
+@dataclass
+class FitResult:
+    """A fitted car.
+
+    Attributes:
+        wireframe: the new model, left half, mm (car frame).
+        view: the refined view; ``given_view`` the one passed in.
+        solution: the mix at the refined view (normalised units).
+        slots: the annotated keypoints; ``uv`` their pixels (k, 2).
+        wheelbase_mm: the wheelbase the model was scaled to.
+        method: ``"mixture"``, ``"gauss"`` or ``"paper"``.
+        library: the library used (names for the report).
+        deformation_mm: largest control-point move of the photo-matching deformation, mm
+            (0 when it is off); the weights describe the mix before it.
+        to_photo: (3, 3) homography from the fitted camera's pixels to the photo's, when the
+            camera was turned to look at an off-centre car (see :func:`~carbody.fit.single_view.fit_wireframe`); the
+            solution's scale and offset are in the turned camera's pixels.
+        focal_px: the focal length that turn used, pixels (the known one, or the fit's).
+        camera_turn_deg: how far that turn swung the camera from the photo's optical axis to
+            the car's centre, degrees (0: no turn).
+        wheelbase_from: where ``wheelbase_mm`` came from: ``"told"``, ``"camera distance"``
+            (a told distance against the perspective's) or ``"library mix"`` (the fitted mix
+            of the templates' own wheelbases).
+        rejected_px: marks left out as misplaced ({name: how far the fitted car passes from
+            it, px}); not in ``slots``. ``rejected_uv``: their pixels; ``rejected_looks_like``:
+            {mark: the keypoint the fitted car puts where it was clicked}, when one is near.
+        swapped_names: a left/right pair of marks fitted with their names exchanged (both
+            misplaced as named, both fitting swapped), or None.
+        solve_residual_px: (k,) the marks' residuals before the deformation (None: no
+            deformation, see ``solution.residual_px``).
+        joint_field: whether the solve had the local displacement field in its prior.
+        search_view: the view the refinement last searched around (the given one, or, when the
+            view settled at the edge of that range, where it settled: ``MAX_VIEW_WALKS``).
+        orthographic_check: an orthographic fit asked to check (``check_orthographic``): its
+            marks fitted with the camera's distance found, against it
+            (:func:`~carbody.fit.single_view._orthographic_check`: ``camera_distance_mm`` found,
+            ``residual_px_mean`` of that fit and ``orthographic_residual_px_mean``, both before
+            the deformation,
+            ``evidence_gain_per_coordinate``, and ``closer_camera``: whether that camera fits
+            them far better); else None. ``closer_camera`` (property): that check when it says so.
+    """
+
+    wireframe: Wireframe
+    view: View
+    given_view: View
+    solution: MixSolution
+    slots: list[KeypointSlot]
+    uv: np.ndarray
+    wheelbase_mm: float
+    method: str
+    library: Library = field(repr=False)
+    deformation_mm: float = 0.0
+    to_photo: np.ndarray | None = None
+    focal_px: float | None = None
+    camera_turn_deg: float = 0.0
+    wheelbase_from: str = "library mix"
+    rejected_px: dict[str, float] = field(default_factory=dict)
+    rejected_uv: dict[str, tuple[float, float]] = field(default_factory=dict)
+    rejected_looks_like: dict[str, str] = field(default_factory=dict)
+    swapped_names: tuple[str, str] | None = None
+    solve_residual_px: np.ndarray | None = field(default=None, repr=False)
+    joint_field: bool = True
+    orthographic_check: dict | None = None
+    search_view: View | None = None
+
+    @property
+    def evidence_per_coordinate(self) -> float | None:
+        """The fit's −log evidence per marked coordinate (Gaussian-prior methods; None for the
+        paper's solve): ≤ 6.1 on the leave-one-out cars' own marks at their views, with 1 or 5 px
+        of noise (BENCHMARKS.md, ``--other-end``), ≤ 8.2 over the end-to-end runs (the pickup's
+        stiffer refits; ``bench_end_to_end.py``); above ``END_SUSPECT_EVIDENCE`` no car near the
+        view fits the marks (:meth:`fits_poorly`; a view elsewhere that fits them soundly is
+        refused naming it, :func:`~carbody.fit.single_view._check_elsewhere`)."""
+        evidence = self.solution.evidence
+        return None if evidence is None else float(evidence) / (2 * len(self.slots))
+
+    @property
+    def fits_poorly(self) -> bool:
+        """No car near the refined view fits the marks (``evidence_per_coordinate`` above
+        ``END_SUSPECT_EVIDENCE``): marks named wrongly, or a view kept unrefined far off (a
+        refined one is refused when a view elsewhere fits soundly,
+        :func:`~carbody.fit.single_view._check_elsewhere`)."""
+        value = self.evidence_per_coordinate
+        return value is not None and value > END_SUSPECT_EVIDENCE
+
+    @property
+    def view_at_search_edge(self) -> bool:
+        """The refined azimuth settled at the edge of the range the refinement last searched
+        (``AZIMUTH_RANGE_DEG`` around ``search_view``, after ``MAX_VIEW_WALKS`` searches moved
+        on): the photo's view likely lies further off."""
+        return at_search_edge(self.view, self.search_view or self.given_view)
+
+    @property
+    def closer_camera(self) -> dict | None:
+        """The orthographic check (``orthographic_check``) when a camera close by fits the marks
+        far better, else None."""
+        check = self.orthographic_check
+        return check if check is not None and check["closer_camera"] else None
+
+    @property
+    def mm_per_unit(self) -> float:
+        return self.wheelbase_mm / NORMALISED_WHEELBASE
+
+    @property
+    def camera_distance_mm(self) -> float | None:
+        """A pinhole view's camera distance from the car's centre, mm (None: orthographic)."""
+        return None if self.view.distance is None else float(self.view.distance * self.mm_per_unit)
+
+    def keypoints_mm(self) -> dict[str, list[float]]:
+        """{name: [x, y, z] mm} of the 35 left keypoints and the mirrors of those annotated."""
+        out = self.wireframe.keypoints()
+        for s in self.slots:
+            if s.is_mirror:
+                out[s.name] = [float(v) for v in self.wireframe.control_points[s.point_index] * s.sign]
+        return out
+
+    def keypoint_sd_mm(self) -> dict[str, list[float]] | None:
+        """{name: [σx, σy, σz] mm}: how far each keypoint of :meth:`keypoints_mm` may be off,
+        one standard deviation per axis, from the Gaussian-prior solve's posterior
+        (:func:`~carbody.fit.solve.keypoint_covariance`): small where the marks pin a
+        keypoint, the library's spread where the view cannot see it (the length on a front
+        view, the width on a level side view). None for the ``"paper"`` method."""
+        post = self.solution.posterior
+        if post is None:
+            return None
+        cov = keypoint_covariance(post)
+        sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None)) * self.mm_per_unit
+        names = [k.name for k in load_topology().keypoints]
+        out = {n: [float(v) for v in row] for n, row in zip(names, sd)}
+        for s in self.slots:
+            if s.is_mirror:
+                out[s.name] = out[s.name.removesuffix("_right")]
+        return out
+
+    def expected_error_mm(self, keypoint_sd_mm: dict[str, list[float]] | None = None) -> dict[str, float] | None:
+        """{name: √(σx² + σy² + σz²) mm} of the 35 left keypoints: the fit's own estimate of
+        each keypoint's 3D error (from ``keypoint_sd_mm``, default :meth:`keypoint_sd_mm`);
+        None for ``"paper"``."""
+        sd = self.keypoint_sd_mm() if keypoint_sd_mm is None else keypoint_sd_mm
+        if sd is None:
+            return None
+        return {k.name: float(np.linalg.norm(sd[k.name])) for k in load_topology().keypoints}
+
+    def draw_expected_errors(self, path: str | Path) -> Path:
+        """Write a PNG of the fitted car in four views, each keypoint coloured by its expected
+        error with its 1σ ellipse (:func:`carbody.templates.drawing.draw_four_views`).
+
+        Raises:
+            FitError: the ``"paper"`` method, which has no posterior.
+        """
+        from carbody.templates.drawing import draw_four_views
+
+        sd = self.keypoint_sd_mm()
+        if sd is None:
+            raise FitError("expected errors need a Gaussian-prior method (mixture or gauss): "
+                           "the paper's solve has no posterior")
+        return draw_four_views(self.wireframe.control_points, path, self.wireframe.name,
+                               keypoint_sd_mm=np.array([sd[k.name] for k in load_topology().keypoints]))
+
+    def reprojected(self) -> np.ndarray:
+        """(k, 2) float, pixels of the fitted annotated keypoints under the refined camera."""
+        pts = np.array([self.wireframe.control_points[s.point_index] * s.sign for s in self.slots])
+        return self.project_points(pts)
+
+    def residuals_px(self) -> dict[str, float]:
+        """{name: reprojection distance, px} per annotated keypoint."""
+        d = np.linalg.norm(self.reprojected() - self.uv, axis=1)
+        return {s.name: float(e) for s, e in zip(self.slots, d)}
+
+    def suspect_keypoints(self) -> list[str]:
+        """Marks the fit cannot follow, worst first: a reprojection residual over
+        ``SUSPECT_RESIDUAL_RATIO`` × the median and over ``SUSPECT_RESIDUAL_SPREAD`` × the marks'
+        spread (a mark in the wrong place, or two names swapped)."""
+        res = self.residuals_px()
+        spread = keypoint_spread(self.uv)
+        limit = max(SUSPECT_RESIDUAL_RATIO * float(np.median(list(res.values()))),
+                    SUSPECT_RESIDUAL_SPREAD * spread)
+        return sorted((n for n, r in res.items() if r > limit), key=lambda n: -res[n])
+
+    def marks_in_fit_camera(self) -> np.ndarray:
+        """(k, 2) the marks in the fitted camera's pixels: ``uv``, or, when the camera was turned
+        toward an off-centre car, ``uv`` taken back through the turn."""
+        return self.uv if self.to_photo is None else apply_homography(np.linalg.inv(self.to_photo), self.uv)
+
+    def project_points(self, points_mm: np.ndarray) -> np.ndarray:
+        """(..., 2) pixels of car-frame points (mm) under the fitted camera."""
+        uv = project(np.asarray(points_mm) / self.mm_per_unit, self.view, self.solution.scale,
+                     self.solution.offset)
+        return uv if self.to_photo is None else apply_homography(self.to_photo, uv)
+
+    def top_weights(self, n: int = 10) -> list[dict]:
+        """The n library models of largest |weight|: template, expansion factors, weight."""
+        H = self.solution.H
+        if H is None:
+            return []
+        order = np.argsort(-np.abs(H))[:n]
+        lib = self.library
+        return [{"model": int(j), "template": lib.template_names[lib.template_index[j]],
+                 "factors": dict(zip(("height", "front_overhang", "rear_overhang", "width"),
+                                     (float(f) for f in lib.factors[j]))),
+                 "weight": float(H[j])} for j in order if H[j] != 0]
+
+    def template_mix(self) -> dict[str, float]:
+        """{template: summed weight of its models}; sums to 1."""
+        H = self.solution.H
+        if H is None:
+            return {}
+        sums = np.bincount(self.library.template_index, weights=H, minlength=len(self.library.template_names))
+        return {n: float(w) for n, w in zip(self.library.template_names, sums)}
