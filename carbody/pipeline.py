@@ -344,11 +344,11 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
 
     focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
 
-    def fit_at(azimuth: float, **stiffer):
-        return fit_wireframe(ann.points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
+    def fit_at(azimuth: float, points: dict = ann.points, reject: bool = reject_outliers, **stiffer):
+        return fit_wireframe(points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
                              image_size=(w, h), wheelbase_mm=wheelbase_mm,
                              camera_distance_mm=camera_distance_mm, principal_point=principal_point,
-                             focal_px=focal, reject_outliers=reject_outliers, check_orthographic=True,
+                             focal_px=focal, reject_outliers=reject, check_orthographic=True,
                              name=name, **stiffer)
 
     tried = [azimuth]
@@ -372,12 +372,17 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     try:
         body = build_body(fit.wireframe)
     except SurfaceError as exc:
+        # The stiffer fits take the marks the fit kept, as it named them (a mark it left out as
+        # misplaced bends a stiffer car further still).
+        kept = {s.name: (float(u), float(v)) for s, (u, v) in zip(fit.slots, fit.uv)}
         for label, stiffer in SURFACE_FALLBACKS:
             try:
-                stiff = fit_at(azimuth, **stiffer)
+                stiff = fit_at(azimuth, kept, False, **stiffer)
                 body = build_body(stiff.wireframe)
             except CarbodyError:
                 continue
+            stiff.rejected_px, stiff.rejected_uv = fit.rejected_px, fit.rejected_uv
+            stiff.rejected_looks_like, stiff.swapped_names = fit.rejected_looks_like, fit.swapped_names
             fit, body, share = _blended_toward(fit, stiff, body)
             fallback = {"reason": str(exc), "fit": label, "share_of_fit": share}
             break

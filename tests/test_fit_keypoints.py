@@ -75,6 +75,10 @@ def test_checks_accept_a_good_set():
     (dict(list(PTS.items())[:4]), "at least"),
     ({n: [100 + i, 100 + 2 * i] for i, n in enumerate(PTS)}, "one line"),
     ({n: [100, 100] for n in PTS}, "coincident"),
+    ({**PTS, "sill_front": [300, 300], "sill_front_right": [301.5, 300.5]}, "'sill_front' and 'sill_front_right' are "
+     "marked on one spot"),
+    ({**PTS, "nose_centre": [3, 4, 5]}, "expected \\(u, v\\) pixels"),
+    (list(PTS.items()), "must map names to"),
 ])
 def test_checks_refuse_bad_keypoints(points, match):
     with pytest.raises(KeypointError, match=match):

@@ -27,6 +27,11 @@ MIN_SPREAD_PX = 2.0
 #: Keypoints whose second principal spread is below this fraction of the first are "collinear".
 MIN_ASPECT = 0.01
 
+#: A left/right pair of marks closer than this fraction of the marks' RMS spread (≈ 3 px for a
+#: car 900 px wide) is one point marked under both names: the twins lie a car's width apart, and
+#: seen edge-on, where they would meet in the photo, the far one is hidden by the car.
+MIN_TWIN_SEPARATION = 0.01
+
 
 @dataclass(frozen=True)
 class KeypointSlot:
@@ -186,6 +191,8 @@ def check_keypoints(points: dict[str, tuple[float, float]],
             ``min_keypoints`` points, or points that are coincident or all on one line.
     """
     slots = keypoint_slots(topology)
+    if not hasattr(points, "items"):
+        raise KeypointError(f"keypoints must map names to (u, v) pixels, got a {type(points).__name__}")
     chosen, uv = [], []
     for name, p in points.items():
         if name not in slots:
@@ -193,7 +200,10 @@ def check_keypoints(points: dict[str, tuple[float, float]],
             hint = f" (did you mean {close[0]!r}?)" if close else \
                 f" (names are the 35 keypoints of the topology, right-half ones end in {RIGHT_SUFFIX!r})"
             raise KeypointError(f"unknown keypoint name {name!r}{hint}")
-        u, v = (float(c) for c in p)
+        try:
+            u, v = (float(c) for c in p)
+        except (TypeError, ValueError):
+            raise KeypointError(f"keypoint {name!r}: expected (u, v) pixels, got {p!r}") from None
         if not (np.isfinite(u) and np.isfinite(v)):
             raise KeypointError(f"keypoint {name!r} has a NaN or infinite coordinate ({u}, {v})")
         if image_size is not None:
@@ -211,7 +221,20 @@ def check_keypoints(points: dict[str, tuple[float, float]],
         raise KeypointError(f"the keypoints are coincident (spread {spread[0]:.3g} px)")
     if spread[1] < MIN_ASPECT * spread[0]:
         raise KeypointError("the keypoints all lie on one line: the fit cannot recover a 3D shape")
+    _check_twins(chosen, uv)
     return chosen, uv
+
+
+def _check_twins(slots: list[KeypointSlot], uv: np.ndarray) -> None:
+    """Refuse a left/right pair marked on one spot (``MIN_TWIN_SEPARATION``)."""
+    at = {s.name: p for s, p in zip(slots, uv)}
+    limit = MIN_TWIN_SEPARATION * float(np.sqrt(np.mean(np.sum((uv - uv.mean(axis=0)) ** 2, axis=1))))
+    for name, p in at.items():
+        twin = at.get(name + RIGHT_SUFFIX)
+        if twin is not None and np.linalg.norm(p - twin) < limit:
+            raise KeypointError(f"{name!r} and {name + RIGHT_SUFFIX!r} are marked on one spot "
+                                f"({np.linalg.norm(p - twin):.1f} px apart): the car's left and right twins "
+                                "lie its width apart; keep the one the photo shows")
 
 
 def write_keypoints(path: str | Path, points: dict[str, tuple[float, float]],

@@ -67,6 +67,8 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         # level no sound fit reaches (a view given far off, marks named wrongly)
         "evidence_per_coordinate": result.evidence_per_coordinate,
         "fits_poorly": result.fits_poorly,
+        # the car passes further from the marks, on average, than 5 % of their spread
+        "misses_marks": result.misses_marks,
         # the refined azimuth at the edge of the range searched around the given one
         "view_at_search_edge": result.view_at_search_edge,
         "visible_at_refined_view": visible,
@@ -125,6 +127,9 @@ def fit_notes(report: dict) -> list[str]:
     notes = marks_notes(report["rejected_keypoints"], report["rejected_looks_like"], report["swapped_keypoints"])
     if report["fits_poorly"]:
         notes.append(poor_fit_line(report["evidence_per_coordinate"], report["residual_px_mean"]))
+    elif report["misses_marks"]:
+        notes.append(f"the fitted car misses the marks by {report['residual_px_mean']:.0f} px on average: "
+                     "the wireframe is not to be trusted; check the marks' names and places, and the view given")
     if report["view_at_search_edge"]:
         notes.append(search_edge_line(report["given_view"]["azimuth_deg"], report["refined_view"]["azimuth_deg"]))
     if (report["orthographic_check"] or {}).get("closer_camera"):

@@ -212,6 +212,14 @@ class FitResult:
         d = np.linalg.norm(self.reprojected() - self.uv, axis=1)
         return {s.name: float(e) for s, e in zip(self.slots, d)}
 
+    @property
+    def misses_marks(self) -> bool:
+        """The fitted car passes, on average, further from the marks than
+        ``SUSPECT_RESIDUAL_SPREAD`` of their spread: a car no better than a guess, whatever the
+        method (the paper's solve has no evidence to tell it by, :attr:`fits_poorly`; a body
+        refitted stiffer to be surfaced, :func:`carbody.pipeline.reconstruct`, is such a car's)."""
+        return bool(np.mean(list(self.residuals_px().values())) > SUSPECT_RESIDUAL_SPREAD * keypoint_spread(self.uv))
+
     def suspect_keypoints(self) -> list[str]:
         """Marks the fit cannot follow, worst first: a reprojection residual over
         ``SUSPECT_RESIDUAL_RATIO`` × the median and over ``SUSPECT_RESIDUAL_SPREAD`` × the marks'

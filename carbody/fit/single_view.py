@@ -316,7 +316,12 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
     residual before the deformation, ``OUTLIER_CANDIDATE_RATIO``) is tested against the car
     fitted without it at the same camera: how many of that fit's standard deviations it lies
     from where that fit puts its keypoint (``OUTLIER_SIGMAS``, ``OUTLIER_SPREAD``). A mark
-    the other marks predict, however far from the library, stays.
+    the other marks predict, however far from the library, stays. A mark bent far enough can
+    spread its misfit over all the others (the right twin of a point clicked on the left one's
+    spot: the car narrows and turns to reach it), so when the fit fits poorly
+    (:attr:`~carbody.fit.result.FitResult.fits_poorly`) the marks whose leaving out makes the
+    fit likeliest (:func:`_influential`) are candidates too, at most ``MAX_OUTLIERS`` of them,
+    whatever their residual.
     """
     from carbody.fit.deform import KEYPOINT_NOISE
     from carbody.fit.keypoints_io import MIN_KEYPOINTS
@@ -326,19 +331,27 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
     residual = _solve_residual(result)
     spread = keypoint_spread(uv)
     told = result.wheelbase_mm if result.wheelbase_from == "told" else None
+
+    def fitted_without(i: int) -> FitResult:  # the others, at the same camera
+        keep = [j for j in range(len(slots)) if j != i]
+        return _fit_checked([slots[j] for j in keep], uv[keep], view=result.view, library=result.library,
+                            method=result.method, prior_weight=prior_weight, refine=False,
+                            camera_distance_mm=None if result.view.distance is None else "kept",
+                            wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name,
+                            joint_field=result.joint_field)
+
+    influential = _influential(result, fitted_without, len(slots)) if result.fits_poorly else []
+    tried: set[str] = set()
     rejected: list[str] = []
     while len(rejected) < MAX_OUTLIERS and len(slots) > MIN_KEYPOINTS:
-        i = int(np.argmax(residual))
-        if not residual[i] > OUTLIER_CANDIDATE_RATIO * float(np.median(residual)):
+        i = _next_candidate(slots, residual, influential, tried)
+        if i is None:
             break
+        tried.add(slots[i].name)
         keep = [j for j in range(len(slots)) if j != i]
         slot = slots[i]
         try:
-            without = _fit_checked([slots[j] for j in keep], uv[keep], view=result.view, library=result.library,
-                                   method=result.method, prior_weight=prior_weight, refine=False,
-                                   camera_distance_mm=None if result.view.distance is None else "kept",
-                                   wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name,
-                                   joint_field=result.joint_field)
+            without = fitted_without(i)
             sol = without.solution
             point = sol.shape.reshape(-1, 3)[slot.point_index] * slot.sign
             miss = uv[i] - project(point, without.view, sol.scale, sol.offset)
@@ -348,13 +361,40 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
         except (FitError, AngleError):  # the car without it puts the camera inside: no verdict
             break
         cov = keypoint_covariance(sol.posterior)[slot.keypoint_id - 1] * np.outer(slot.sign, slot.sign)
-        seen = jac @ cov @ jac.T + (KEYPOINT_NOISE * sol.scale) ** 2 * np.eye(2)
-        sigmas = float(np.sqrt(miss @ np.linalg.solve(seen, miss)))
+        spread_seen = jac @ cov @ jac.T + (KEYPOINT_NOISE * sol.scale) ** 2 * np.eye(2)
+        sigmas = float(np.sqrt(miss @ np.linalg.solve(spread_seen, miss)))
         if sigmas <= OUTLIER_SIGMAS or np.linalg.norm(miss) <= OUTLIER_SPREAD * spread:
-            break
+            continue  # the rest predict it: it stays (a hidden one may be tried next)
         rejected.append(slot.name)
         slots, uv, residual = [slots[j] for j in keep], uv[keep], np.asarray(sol.residual_px, dtype=float)
     return rejected
+
+
+def _influential(result: FitResult, fitted_without, n: int) -> list[str]:
+    """Names of the ``MAX_OUTLIERS`` marks whose leaving out makes ``result``'s solve likeliest
+    (its −log evidence falls most; each the others' solve at the same camera, unrefined: a few
+    ms a mark), most first; [] for the paper's solve, which has no evidence."""
+    if result.solution.evidence is None:
+        return []
+    gains = []
+    for i in range(n):
+        try:
+            gains.append((float(result.solution.evidence - fitted_without(i).solution.evidence), i))
+        except (FitError, AngleError):
+            continue
+    return [result.slots[i].name for _, i in sorted(gains, reverse=True)[:MAX_OUTLIERS]]
+
+
+def _next_candidate(slots: list[KeypointSlot], residual: np.ndarray, influential: list[str],
+                    tried: set[str]) -> int | None:
+    """The next mark :func:`_outliers` tests: the largest residual when it exceeds
+    ``OUTLIER_CANDIDATE_RATIO`` × the median, else the next of ``influential``; one not tried
+    yet, or None."""
+    top = int(np.argmax(residual))
+    if residual[top] > OUTLIER_CANDIDATE_RATIO * float(np.median(residual)) and slots[top].name not in tried:
+        return top
+    names = [s.name for s in slots]
+    return next((names.index(n) for n in influential if n in names and n not in tried), None)
 
 
 def _distances_to_marks(result: FitResult, names: list[str], slots: list[KeypointSlot],
