@@ -28,8 +28,16 @@ COMMAND_MODULES = (
 )
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its mistakes said in one line (a missing option, a word for a number), as
+    the commands' own are, instead of the usage block first; exit code 2 as before."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="carbody",
         description="One photo of a car -> an editable CAD car body (Bezier wireframe + Bezier shell) in STEP.",
     )

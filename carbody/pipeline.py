@@ -141,10 +141,14 @@ class Reconstruction:
     def summary(self, report: dict) -> str:
         """A few lines for a person: view, residual, accuracy when known, body checks, times."""
         fit, view = report["fit"], report["view"]
+        source = view["source"]
+        if source == "given":
+            source = f"given {view['given_azimuth_deg']:g} deg"
+        elif "classifier" in view:
+            source += f", classifier said {view['classifier']['class_deg']:.0f} deg"
         lines = [
             f"car: {self.name}",
-            f"view: {view['azimuth_deg']:.1f} deg azimuth, {view['elevation_deg']:.1f} deg elevation "
-            f"({view['source']}{', classifier said %.0f deg' % view['classifier']['class_deg'] if 'classifier' in view else ''})",
+            f"view: {view['azimuth_deg']:.1f} deg azimuth, {view['elevation_deg']:.1f} deg elevation ({source})",
             "camera: " + ("orthographic (far away)" if view["camera_distance_mm"] is None
                           else f"{view['camera_distance_mm']:.0f} mm from the car's centre")
             + (f", turned {fit['camera_turn_deg']:.1f} deg from the photo's axis to the car "
@@ -260,7 +264,7 @@ def default_library():
 
 def _read_inputs(image, keypoints):
     """(RGB image, its path or None, annotation) with sizes checked against each other."""
-    from carbody.fit.keypoints_io import Annotation, read_keypoints
+    from carbody.fit.keypoints_io import Annotation, check_image_size, read_keypoints
     from carbody.view.predict import read_image
 
     image_path = None
@@ -269,16 +273,17 @@ def _read_inputs(image, keypoints):
     rgb = read_image(image)
     if isinstance(keypoints, (str, Path)):
         ann = read_keypoints(keypoints)
+    elif hasattr(keypoints, "items"):
+        ann = Annotation(dict(keypoints.items()), None, None)
     else:
-        ann = Annotation({k: tuple(v) for k, v in dict(keypoints).items()}, None, None)
+        raise KeypointError(f"keypoints must be a keypoint file or map names to (u, v) pixels, "
+                            f"got a {type(keypoints).__name__}")
     h, w = rgb.shape[:2]
-    if ann.image_size is not None and tuple(int(s) for s in ann.image_size) != (w, h):
-        aw, ah = ann.image_size
-        raise KeypointError(f"the keypoints were marked on a {aw} x {ah} image but the photo is {w} x {h}")
+    check_image_size(ann, (w, h))
     return rgb, image_path, ann
 
 
-def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float | None = None, *,
+def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm: float | None = None, *,
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
                 principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
                 name: str | None = None, library=None, reject_outliers: bool = True,
@@ -288,13 +293,14 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
     Args:
         image: photo path or (h, w[, c]) uint8 array (grayscale and RGBA work).
         keypoints: keypoint file (the project's JSON, COCO or labelme) or {name: (u, v)} pixels.
-        view: azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side); None asks the
-            shipped view classifier.
+        view: azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side) or a name
+            (``"front 30"``, ``"front 30 right"``: :func:`carbody.camera.read_view`); None asks
+            the shipped view classifier.
         wheelbase_mm: the car's real wheelbase; None uses the fitted mix of the templates'.
         elevation_deg: starting camera elevation for the view refinement.
         camera_distance_mm: how far the camera stood from the car's centre (a pinhole camera:
             nearer parts look larger); "auto" (default: photos are taken from a few metres)
-            finds it with the view; None assumes a distant (orthographic) camera.
+            finds it with the view; None (or "orthographic") assumes a distant camera.
         principal_point: where the camera's optical axis meets the photo: "car" (pointed at
             the car, or a photo cropped around it), "centre" (an uncropped photo: a car off
             its centre is then turned to; see :func:`carbody.fit.fit_wireframe`), or "auto"
@@ -335,7 +341,9 @@ def reconstruct(image, keypoints, view: float | None = None, wheelbase_mm: float
         prediction = predict_view(rgb)
         azimuth, source = prediction.theta_deg, "classifier"
     else:
-        azimuth, source = view, "given"
+        from carbody.camera import read_view
+
+        azimuth, source = read_view(view), "given"
     timings["view"] = time.perf_counter() - start
 
     start = stage("fit")

@@ -23,8 +23,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wheelbase", type=float, default=None,
                    help="the car's wheelbase in mm (default: fitted); told, the fit also knows "
                         "the car's width and height in mm")
+    p.add_argument("--elevation", type=float, default=0.0,
+                   help="starting camera elevation, degrees (default 0; refined)")
     add_camera_arguments(p)
     add_marks_argument(p)
+    p.add_argument("--exclude-template", action="append", default=[], metavar="NAME",
+                   help="leave this template (and its expansions) out of the library; repeatable "
+                        "(how the tool does on a car it has never seen)")
     p.add_argument("--truth", default=None, help="ground truth wireframe STEP or template name: adds 3D errors")
     p.add_argument("--name", default=None, help="the car's name in the STEP files (default: photo file stem)")
     p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
@@ -44,19 +49,22 @@ def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
     from carbody.fit.cli import parse_distance
     from carbody.pipeline import prepare_output_dir
 
+    from carbody.fit.cli import library_without
+
     distance = parse_distance(args.distance)
     view = None if args.view is None else read_view(args.view)
+    library = library_without(args.exclude_template) if args.exclude_template else None
     created = not Path(args.out).exists()
     prepare_output_dir(args.out)  # fail before the work, not after
     try:
-        return _reconstruct_into(args, view, distance, out)
+        return _reconstruct_into(args, view, distance, library, out)
     except BaseException:
         if created:  # a folder made for outputs that never came is not left behind
             shutil.rmtree(args.out, ignore_errors=True)
         raise
 
 
-def _reconstruct_into(args: argparse.Namespace, view, distance, out) -> int:
+def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) -> int:
     from tqdm import tqdm
 
     from carbody.pipeline import STAGES, reconstruct
@@ -71,7 +79,7 @@ def _reconstruct_into(args: argparse.Namespace, view, distance, out) -> int:
             bar.set_description(label)
 
         result = reconstruct(args.image, args.keypoints, view, args.wheelbase, name=args.name,
-                             camera_distance_mm=distance,
+                             elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
                              principal_point=args.principal_point, focal_35mm=args.focal_35mm,
                              reject_outliers=not args.keep_marks, on_stage=on_stage)
         bar.update(1)

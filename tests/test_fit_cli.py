@@ -84,7 +84,8 @@ def test_fit_writes_step_overlay_and_report(photo):
     assert rep["error_mm_at_truth_wheelbase_mean"] < 80 and len(rep["error_mm_at_truth_wheelbase"]) == 35
     assert (out / "r.errors.png").is_file()
     expected = rep["expected_error_mm"]
-    assert set(expected) == set(rep["error_mm"]) and 0 < rep["expected_error_mm_mean"] < 200
+    assert set(expected) == set(rep["keypoints_mm"]) and 0 < rep["expected_error_mm_mean"] < 200
+    assert rep["expected_error_mm_mean"] == pytest.approx(np.mean([expected[n] for n in rep["error_mm"]]))
     assert set(rep["keypoint_sd_mm"]) == set(rep["keypoints_mm"])
     assert "expected 3D keypoint error" in proc.stdout
     assert read_image(out / "u.png").shape[0] > 500  # the four-view drawing with expected errors
@@ -181,11 +182,11 @@ def test_output_into_a_closed_pipe_ends_quietly():
     assert proc.returncode == 141 and proc.stderr == ""
 
 
-def _bad(photo, tmp_path, keypoints=None, view="30", image=None, extra=()):
+def _bad(photo, tmp_path, keypoints=None, view="30", image=None, extra=(), text=None):
     kfile = photo / "car.json"
-    if keypoints is not None:
+    if keypoints is not None or text is not None:
         kfile = tmp_path / "k.json"
-        kfile.write_text(json.dumps({"keypoints": keypoints}))
+        kfile.write_text(text if text is not None else json.dumps({"keypoints": keypoints}))
     out = tmp_path / "x.step"
     proc = run_cli("fit", str(image or photo / "car.png"), "--keypoints", str(kfile), "--view", view,
                    "-o", str(out), "--overlay", str(tmp_path / "x.png"), *extra)
@@ -203,6 +204,14 @@ def test_bad_inputs_exit_2_with_one_line_and_no_output(photo, tmp_path):
     assert "outside" in _bad(photo, tmp_path, {**good, "nose_centre": [5000, 3.0]})
     assert "one line" in _bad(photo, tmp_path, {n: [100 + i, 50 + i] for i, n in enumerate(good)})
     assert "0–360" in _bad(photo, tmp_path, view="400")
+    # marked on a copy of the photo at half size; a name given twice; a pair clicked on one spot
+    half = {n: [u / 2, v / 2] for n, (u, v) in good.items()}
+    assert "marked on a 400 x 200 image but the photo is" in _bad(
+        photo, tmp_path, text=json.dumps({"image_size": [400, 200], "keypoints": half}))
+    twice = json.dumps({"keypoints": good})[:-2] + ', "nose_centre": [1, 2]}}'
+    assert "'nose_centre' is given twice" in _bad(photo, tmp_path, text=twice)
+    u, v = good["a_pillar_base"]
+    assert "marked on one spot" in _bad(photo, tmp_path, {**good, "a_pillar_base_right": [u + 1, v]})
     junk = tmp_path / "junk.png"
     junk.write_bytes(b"not an image")
     assert "not an image" in _bad(photo, tmp_path, image=junk)

@@ -757,3 +757,21 @@ def test_a_collapsed_focal_length_is_not_turned_by(library, monkeypatch):
     monkeypatch.setattr(single_view, "MIN_FOCAL_DIAGONAL", 0.0)
     with pytest.raises(np.linalg.LinAlgError):
         fit()
+
+
+def test_the_api_takes_what_the_command_line_takes(library):
+    """A view by name and the camera as 'orthographic', as ``carbody fit`` takes them; a roll past
+    ±90° (a photo on its side) and keypoints that are not {name: (u, v)} are refused in a line."""
+    from carbody.errors import AngleError, KeypointError
+    from tests.conftest import REPO
+
+    example = json.loads((REPO / "examples" / "car_keypoints.json").read_text())
+    marks = example["keypoints"]
+    named = fit_wireframe(marks, "front 30", library, camera_distance_mm="orthographic", refine=False)
+    number = fit_wireframe(marks, View(30), library, camera_distance_mm=None, refine=False)
+    assert named.view == number.view and named.camera_distance_mm is None
+    assert np.allclose(named.wireframe.control_points, number.wireframe.control_points)
+    with pytest.raises(AngleError, match="roll 120° is outside"):
+        fit_wireframe(marks, View(30, 0, 120), library)
+    with pytest.raises(KeypointError, match="must map names"):
+        fit_wireframe(list(marks.items()), 30, library)

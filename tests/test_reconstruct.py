@@ -302,9 +302,21 @@ def test_a_wireframe_that_cannot_be_surfaced_is_refitted_stiffer_and_said_so(lib
     (("templates", "show", "Volvo V60", "--png", "/proc/t.png"), "cannot write in /proc"),
     (("freecad", "{tmp}", "-o", "/proc/x.FCStd"), "cannot write in /proc"),
     (("train-view", "{tmp}", "-o", "/proc/w.pt"), "cannot write in /proc"),
+    (("fit", "{photo}", "-k", "{keypoints}", "--view", "30", "-o", "{tmp}/a.txt"),
+     "a STEP file is written here as .step / .stp, not .txt"),
+    (("fit", "{photo}", "-k", "{keypoints}", "--view", "30", "-o", "{tmp}/a.step", "--overlay", "{tmp}/o.png",
+      "--uncertainty", "{tmp}/o.png"), "given for both --overlay and --uncertainty"),
+    (("fit", "{photo}", "-k", "{keypoints}", "--view", "30", "-o", "{tmp}/a.step", "--truth", "Volvo V60"),
+     "--truth needs --report"),
+    (("surface", "{wire}", "-o", "{tmp}/b.step", "--report", "{tmp}/r.yaml"), "a JSON report is written here"),
+    (("fit", "{photo}", "-k", "{keypoints}", "--view", "30", "-o", "{tmp}/a.step", "--roll", "400"),
+     "roll 400° is outside ±90°"),
+    (("fit", "{photo}", "-k", "{keypoints}", "--view", "30"), "required: --output/-o (see carbody fit --help)"),
+    (("reconstruct", "{photo}", "-k", "{keypoints}", "--exclude-template", "Model T", "-o", "{tmp}/r"), "Model T"),
 ])
 def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path, command, refused):
-    """Every command checks its output files first: one line, exit 2, nothing written."""
+    """Every command checks its output files (and its other options) first: one line, exit 2,
+    nothing written."""
     wire = REPO / "templates_step" / "volvo_v60.step"
     args = [a.format(photo=PHOTO, keypoints=KEYPOINTS, tmp=tmp_path, wire=wire) for a in command]
     proc = run_cli(*args)

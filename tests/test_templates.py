@@ -158,3 +158,24 @@ def test_one_bad_template_refuses_the_whole_set_and_the_cli_says_it_in_one_line(
 def test_a_wireframe_needs_280_points():
     with pytest.raises(TemplateError, match="280 x 3"):
         Wireframe("x", np.zeros((10, 3)))
+
+
+def test_the_four_view_drawing_labels_every_axis_in_the_car_frame(templates):
+    """Seen from above and from behind, the car's left (x > 0) is drawn at the bottom and on the
+    left: those axes run backwards, their labels still the car frame's mm (not negated)."""
+    import matplotlib.pyplot as plt
+
+    from carbody.templates.drawing import four_views_figure
+
+    cp = templates[0][1].control_points
+    fig = four_views_figure(cp)
+    try:
+        side, front, top, rear = fig.axes[:4]
+        assert [a.get_title() for a in (side, front, top, rear)] == ["side (left)", "front", "top", "rear"]
+        assert top.yaxis_inverted() and rear.xaxis_inverted() and not front.xaxis_inverted()
+        # the left flank's widest point is plotted at its own x, on the top view's vertical axis
+        widest = cp[:, 0].max()
+        assert top.get_ylim()[0] >= widest and min(top.get_ylim()) <= -widest
+        assert any(np.isclose(np.max(line.get_ydata()), widest) for line in top.lines)
+    finally:
+        plt.close(fig)

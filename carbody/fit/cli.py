@@ -46,7 +46,7 @@ def parse_distance(text: str | None) -> float | str | None:
     try:
         value = float(text)
     except ValueError:
-        raise FitError(f"--distance {text!r} is neither a number of mm nor 'auto'") from None
+        raise FitError(f"--distance {text!r} is neither a number of mm, 'auto' nor 'orthographic'") from None
     if not (value > 0 and value < float("inf")):
         raise FitError(f"--distance {text!r} is not a positive number of mm")
     return value
@@ -65,10 +65,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                                                  "name: 'front 30', 'side', 'rear 30', 'front 30 right'; "
                                                  "refined around it (a view the marks show to be the car's "
                                                  "other side or end, or far off, is refused naming theirs)")
-    p.add_argument("--elevation", type=float, default=0.0, help="starting camera elevation, degrees")
+    p.add_argument("--elevation", type=float, default=0.0,
+                   help="starting camera elevation, degrees (default 0; refined unless --no-refine)")
     p.add_argument("--roll", type=float, default=0.0,
-                   help="camera roll of a tilted photo, degrees (kept as given: the refinement "
-                        "moves azimuth and elevation only)")
+                   help="camera roll of a tilted photo, degrees within ±90 (default 0; kept as given: the "
+                        "refinement moves azimuth and elevation only)")
     p.add_argument("--wheelbase", type=float, default=None,
                    help="real wheelbase, mm (default: the fitted mix of the templates' own); "
                         "told, the fit also knows the car's width and height in mm")
@@ -90,8 +91,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--uncertainty", metavar="PNG",
                    help="four-view drawing of the fitted wireframe with each keypoint's expected "
                         "error as a 1σ ellipse (not with --method paper)")
-    p.add_argument("--truth", help="ground truth (template name or wireframe STEP): adds the 3D "
-                                   "error per keypoint to the report and an error bar chart")
+    p.add_argument("--truth", help="ground truth (template name or wireframe STEP), with --report: adds the 3D "
+                                   "error per keypoint to the report and an error bar chart (REPORT.errors.png)")
     p.add_argument("--name", default=None, help="product name in the STEP file (default: image stem)")
     p.set_defaults(func=run_fit)
 
@@ -141,13 +142,13 @@ def run_photo_plane(args: argparse.Namespace) -> int:
 def run_fit(args: argparse.Namespace) -> int:
     from carbody.errors import FitError
     from carbody.camera import View, read_view
-    from carbody.fit.keypoints_io import read_keypoints
+    from carbody.fit.keypoints_io import check_image_size, read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
     from carbody.fit.report import build_report, draw_error_chart, fit_notes, write_json
     from carbody.fit.focal import focal_length_px
     from carbody.fit.single_view import fit_wireframe
-    from carbody.library import load_library
-    from carbody.outputs import PHOTO, PICTURE, check_output_file
+    from carbody.outputs import JSON, PHOTO, PICTURE, STEP, check_distinct, check_output_file
+    from carbody.view.labels import angular_difference
     from carbody.view.predict import read_image
     from carbody.wireframe import write_wireframe
 
@@ -157,19 +158,24 @@ def run_fit(args: argparse.Namespace) -> int:
     image = read_image(args.image)[..., ::-1].copy()  # RGB -> BGR: the overlay is drawn with OpenCV
     ann = read_keypoints(args.keypoints)
     h, w = image.shape[:2]
-    library = load_library()
-    for name in args.exclude_template:
-        library = library.without(_match_template(library, name))
+    check_image_size(ann, (w, h))
+    library = library_without(args.exclude_template)
     truth = _truth(args.truth) if args.truth else None
-    check_output_file(args.output)
+    chart = Path(args.report).with_suffix(".errors.png") if args.report and truth is not None else None
+    if truth is not None and not args.report:
+        raise FitError("--truth needs --report: the errors go into the report, and their chart next to it "
+                       "(REPORT.errors.png)")
+    check_output_file(args.output, STEP)
     if args.overlay:
         check_output_file(args.overlay, PHOTO)
     if args.uncertainty:
         check_output_file(args.uncertainty, PICTURE)
     if args.report:
-        check_output_file(args.report)
-        if truth is not None:
-            check_output_file(Path(args.report).with_suffix(".errors.png"))
+        check_output_file(args.report, JSON)
+    if chart is not None:
+        check_output_file(chart, PICTURE)
+    check_distinct({"--output": args.output, "--overlay": args.overlay, "--uncertainty": args.uncertainty,
+                    "--report": args.report, "the error chart": chart})
     if args.uncertainty and args.method == "paper":
         raise FitError("--uncertainty needs a Gaussian-prior method (mixture or gauss): "
                        "the paper's solve has no posterior")
@@ -191,8 +197,7 @@ def run_fit(args: argparse.Namespace) -> int:
         result.draw_expected_errors(args.uncertainty)
     if args.report:
         write_json(args.report, report)
-        if truth is not None:
-            chart = Path(args.report).with_suffix(".errors.png")
+        if chart is not None:
             draw_error_chart(report["error_mm_at_truth_wheelbase"], chart,
                              annotated={s.name.removesuffix("_right") for s in result.slots},
                              expected_mm=report.get("expected_error_mm"))
@@ -204,7 +209,9 @@ def run_fit(args: argparse.Namespace) -> int:
     if result.camera_turn_deg:
         camera += (f", turned {result.camera_turn_deg:.1f}° from the photo's axis to the car"
                    + (f" (focal length {result.focal_px:.0f} px found)" if focal is None else ""))
-    print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° (elevation {v.elevation:.1f}°, "
+    given = result.given_view.azimuth
+    told = f"given {given:g}°, " if angular_difference(given, v.azimuth) >= 0.05 else ""
+    print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° ({told}elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm ({result.wheelbase_from}) -> {args.output}")
     for line in fit_notes(report):
@@ -215,6 +222,17 @@ def run_fit(args: argparse.Namespace) -> int:
               f"{report['error_mm_at_truth_wheelbase_mean']:.1f} mm, max "
               f"{report['error_mm_at_truth_wheelbase_max']:.1f} mm)")
     return 0
+
+
+def library_without(names: list[str]):
+    """The shipped library without the named templates (``--exclude-template``; names matched
+    as :func:`carbody.templates.slug` does) and their expansions."""
+    from carbody.library import load_library
+
+    library = load_library()
+    for name in names:
+        library = library.without(_match_template(library, name))
+    return library
 
 
 def _match_template(library, name: str) -> str:

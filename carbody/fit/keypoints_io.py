@@ -155,11 +155,20 @@ def read_keypoints(path: str | Path, annotation: int = 0) -> Annotation:
             labelme (``shapes`` of ``shape_type`` point).
         annotation: which annotation of a COCO file (default the first).
     Raises:
-        KeypointError: unreadable, not JSON, or none of the three structures.
+        KeypointError: unreadable, not JSON, a name given twice in one object, or none of the
+            three structures.
     """
     path = Path(path)
+
+    def unique(pairs: list) -> dict:  # JSON keeps the last of a name given twice: say so instead
+        names = [k for k, _ in pairs]
+        twice = next((k for k in names if names.count(k) > 1), None)
+        if twice is not None:
+            raise KeypointError(f"{path}: {twice!r} is given twice in one object (which is meant?)")
+        return dict(pairs)
+
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(), object_pairs_hook=unique)
     except OSError as exc:
         raise KeypointError(f"{path}: cannot read keypoint file ({exc.strerror or exc})") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -235,6 +244,18 @@ def _check_twins(slots: list[KeypointSlot], uv: np.ndarray) -> None:
             raise KeypointError(f"{name!r} and {name + RIGHT_SUFFIX!r} are marked on one spot "
                                 f"({np.linalg.norm(p - twin):.1f} px apart): the car's left and right twins "
                                 "lie its width apart; keep the one the photo shows")
+
+
+def check_image_size(annotation: Annotation, size: tuple[int, int]) -> None:
+    """Refuse an annotation whose file states another image size than the photo's (marks made on
+    a resized copy land in the wrong place).
+
+    Raises:
+        KeypointError: naming both sizes.
+    """
+    if annotation.image_size is not None and tuple(int(s) for s in annotation.image_size) != tuple(size):
+        (aw, ah), (w, h) = annotation.image_size, size
+        raise KeypointError(f"the keypoints were marked on a {aw} x {ah} image but the photo is {w} x {h}")
 
 
 def write_keypoints(path: str | Path, points: dict[str, tuple[float, float]],

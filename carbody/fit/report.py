@@ -83,6 +83,8 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         "deformation_mm_max": result.deformation_mm,
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
+        # the templates the fit mixed (fewer than 14 when some were excluded)
+        "library_templates": list(result.library.template_names),
         # the photo as an image plane behind the car, square to the fitted camera (mm; a CAD
         # viewer looking along the camera sees the wireframe on it)
         "photo_plane": None if image is None else fitted_plane(result, image).as_dict(),
@@ -97,8 +99,10 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         # with the leave-one-out errors
         expected = result.expected_error_mm(sd)
         report["keypoint_sd_mm"] = sd
-        report["expected_error_mm"] = expected
-        report["expected_error_mm_mean"] = float(np.mean(list(expected.values())))
+        # (a marked right-half keypoint has its left twin's)
+        report["expected_error_mm"] = {**expected, **{n: float(np.linalg.norm(v)) for n, v in sd.items()
+                                                      if n not in expected}}
+        report["expected_error_mm_mean"] = float(np.mean(list(expected.values())))  # over the 35
     if truth is not None:
         err = keypoint_errors_mm(result.wireframe, truth)
         report["truth"] = truth.name
@@ -190,6 +194,9 @@ def expected_error_line(expected_mm: dict[str, float]) -> str:
     """One line for a person: the mean of the fit's expected keypoint errors and the three
     keypoints it is least sure of (``FitResult.expected_error_mm``, the report's
     ``expected_error_mm``)."""
+    from carbody.wireframe import RIGHT_SUFFIX
+
+    expected_mm = {n: e for n, e in expected_mm.items() if not n.endswith(RIGHT_SUFFIX)}  # the 35
     least = sorted(expected_mm, key=lambda n: -expected_mm[n])[:3]
     return (f"expected 3D keypoint error (the fit's own estimate): mean "
             f"{np.mean(list(expected_mm.values())):.0f} mm; least sure: "

@@ -47,7 +47,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
 
     Args:
         keypoints: {name: (u, v)} pixels; any subset of the 35 names and their ``_right`` mirrors.
-        view: the view (or its azimuth in degrees, 0–360).
+        view: the view, or its azimuth in degrees (0–360) or name (``"front 30"``,
+            :func:`carbody.camera.read_view`).
         library: the model library (default :func:`carbody.library.load_library`).
         image_size: (width, height) px; keypoints off the image are refused.
         wheelbase_mm: real wheelbase; default the fitted mix of the templates' own. Told, the
@@ -71,7 +72,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             larger; without ``wheelbase_mm`` it sizes the car: the fit finds the distance in
             wheelbases from the perspective, and the two give the wheelbase; with too little
             perspective for that, it is read at the fitted car's own wheelbase);
-            ``"auto"`` to find the distance (with the view, when it is refined).
+            ``"auto"`` to find the distance (with the view, when it is refined);
+            ``"orthographic"`` is None.
         principal_point: where a pinhole camera's optical axis meets the photo: ``"car"``
             (the camera pointed at the car's centre, or the photo cropped around it),
             ``"centre"`` (the image centre of an uncropped photo; needs ``image_size``), (u, v)
@@ -110,12 +112,16 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float,
             (:func:`_check_elsewhere`); ``azimuth`` names that view.
         FitError: an unknown method or a bad wheelbase, or keypoints no model can match.
     """
-    from carbody.camera import check_azimuth
+    from carbody.camera import MAX_ABS_ROLL_DEG, check_azimuth, read_view
 
     if not isinstance(view, View):
-        view = View(check_azimuth(view))
+        view = View(check_azimuth(read_view(view) if isinstance(view, str) else view))
     else:
         check_azimuth(view.azimuth)
+    if abs(view.roll) > MAX_ABS_ROLL_DEG:
+        raise AngleError(f"view roll {view.roll:g}° is outside ±{MAX_ABS_ROLL_DEG:g}°: turn the photo upright")
+    if camera_distance_mm == "orthographic":
+        camera_distance_mm = None
     if method not in METHODS:
         raise FitError(f"unknown fit method {method!r} (known: {', '.join(METHODS)})")
     if wheelbase_mm is not None and not (np.isfinite(wheelbase_mm) and MIN_WHEELBASE_MM <= wheelbase_mm <= MAX_WHEELBASE_MM):
@@ -892,6 +898,8 @@ def _pinhole(view: View, camera_distance_mm: float | str, wheelbase_mm: float | 
             value = float(camera_distance_mm)
         except (TypeError, ValueError):
             raise FitError(f"camera distance {camera_distance_mm!r} is not a number or 'auto'") from None
+        if not (np.isfinite(value) and value > 0):
+            raise FitError(f"camera distance {camera_distance_mm!r} mm is not a positive distance")
         wb = wheelbase_mm if wheelbase_mm is not None else float(np.mean(library.template_wheelbase_mm))
         distance = value / (wb / NORMALISED_WHEELBASE)
         half_length = float(np.ptp(points[:, 1])) / 2

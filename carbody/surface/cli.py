@@ -62,14 +62,15 @@ def read_surface_wireframe(path: Path):
 def _surface(args) -> int:
     import time
 
-    from carbody.outputs import PICTURE, check_output_file
+    from carbody.outputs import JSON, PICTURE, STEP, check_distinct, check_output_file
     from carbody.surface.body import build_body, write_body
 
-    check_output_file(args.output)  # refuse before any work, write nothing
+    check_output_file(args.output, STEP)  # refuse before any work, write nothing
     if args.report:
-        check_output_file(args.report)
+        check_output_file(args.report, JSON)
     if args.png:
         check_output_file(args.png, PICTURE)
+    check_distinct({"--output": args.output, "--report": args.report, "--png": args.png})
     t0 = time.perf_counter()
     wf = read_surface_wireframe(args.wireframe)
     t1 = time.perf_counter()

@@ -8,7 +8,8 @@ import numpy as np
 from carbody.topology import Topology, load_topology
 from carbody.wireframe import sample_curves
 
-#: (title, horizontal axis, vertical axis, draw both halves) per view; an axis is (coordinate, sign).
+#: (title, horizontal axis, vertical axis, draw both halves) per view; an axis is (coordinate,
+#: sign): −1 runs it the other way (the axis inverted, its labels the car frame's own).
 VIEWS = (
     ("side (left)", (1, 1.0), (2, 1.0), False),
     ("front", (0, 1.0), (2, 1.0), True),
@@ -19,11 +20,32 @@ VIEWS = (
 
 def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "",
                     topology: Topology | None = None, keypoint_sd_mm: np.ndarray | None = None) -> Path:
-    """Write a PNG with the front, side, top and rear views and the 35 keypoints labelled.
+    """Write a PNG with the front, side, top and rear views and the 35 keypoints labelled
+    (:func:`four_views_figure`), whole or not at all.
+
+    Returns:
+        the written path.
+    """
+    import os
+
+    import matplotlib.pyplot as plt
+
+    fig = four_views_figure(control_points, title, topology, keypoint_sd_mm)
+    out = Path(path)
+    tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp.png")
+    fig.savefig(tmp, dpi=90)
+    plt.close(fig)
+    os.replace(tmp, out)
+    return out
+
+
+def four_views_figure(control_points: np.ndarray, title: str = "", topology: Topology | None = None,
+                      keypoint_sd_mm: np.ndarray | None = None):
+    """The matplotlib figure of :func:`draw_four_views`: each view's axes labelled in the car
+    frame's own mm (a view seen the other way runs its axis backwards, it does not negate it).
 
     Args:
         control_points: (280, 3) float, mm, car frame (left half).
-        path: PNG file to write (written whole or not at all).
         title: heading of the drawing (the car's name).
         keypoint_sd_mm: (35, 3) float or None: each keypoint's standard deviation per axis (a
             fit's :meth:`~carbody.fit.result.FitResult.keypoint_sd_mm`): the keypoints are
@@ -31,10 +53,8 @@ def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "
             1σ ellipse in every view — which of the car's dimensions the photo fixed and which
             are the library's guess.
     Returns:
-        the written path.
+        the figure (close it with ``matplotlib.pyplot.close``).
     """
-    import os
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -56,7 +76,7 @@ def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "
     for ax, (name, (hi, hs), (vi, vs), both) in zip(axes, VIEWS):
         for group, colour in ((curves, "#1f4e9c"), (mirror, "#9fb3d6")) if both else ((curves, "#1f4e9c"),):
             for c in group:
-                ax.plot(hs * c[:, hi], vs * c[:, vi], color=colour, lw=1.2)
+                ax.plot(c[:, hi], c[:, vi], color=colour, lw=1.2)
         for i, (k, p) in enumerate(zip(topo.keypoints, kp)):
             facing = (name.startswith("front") and p[1] < 0.5 * control_points[:, 1].max() / 2) or \
                      (name.startswith("rear") and p[1] > 0.5 * control_points[:, 1].max()) or \
@@ -66,11 +86,15 @@ def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "
             colour = "#d62728"
             if keypoint_sd_mm is not None:
                 colour = cmap(norm(expected[i]))
-                ax.add_patch(Ellipse((hs * p[hi], vs * p[vi]), 2 * keypoint_sd_mm[i, hi], 2 * keypoint_sd_mm[i, vi],
+                ax.add_patch(Ellipse((p[hi], p[vi]), 2 * keypoint_sd_mm[i, hi], 2 * keypoint_sd_mm[i, vi],
                                      facecolor=colour, edgecolor=colour, alpha=0.25, lw=0.8))
-            ax.plot(hs * p[hi], vs * p[vi], "o", color=colour, ms=5 if keypoint_sd_mm is not None else 3.5)
-            ax.annotate(str(k.id), (hs * p[hi], vs * p[vi]), fontsize=7, color="#d62728",
+            ax.plot(p[hi], p[vi], "o", color=colour, ms=5 if keypoint_sd_mm is not None else 3.5)
+            ax.annotate(str(k.id), (p[hi], p[vi]), fontsize=7, color="#d62728",
                         xytext=(2, 2), textcoords="offset points")
+        if hs < 0:
+            ax.invert_xaxis()
+        if vs < 0:
+            ax.invert_yaxis()
         ax.set_title(name)
         ax.set_aspect("equal")
         ax.grid(alpha=0.25)
@@ -86,9 +110,4 @@ def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "
     note = ", keypoints coloured by their expected error, 1σ ellipses" if keypoint_sd_mm is not None else ""
     fig.suptitle(f"{title}  (mm; front wheel centre at y = 0, wheel centres at z = 0{note})")
     fig.tight_layout()
-    out = Path(path)
-    tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=90)
-    plt.close(fig)
-    os.replace(tmp, out)
-    return out
+    return fig
