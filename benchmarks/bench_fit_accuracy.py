@@ -146,6 +146,26 @@ def swap_pair(kps: dict, rng: np.random.Generator) -> tuple[dict, list[str]]:
     return {**kps, a: kps[b], b: kps[a]}, [a, b]
 
 
+#: --twin-slip: how far (px) from a mark its twin is clicked.
+TWIN_SLIP_PX = 4.0
+
+
+def twin_slip(kps: dict, rng: np.random.Generator) -> tuple[dict, list[str]]:
+    """One random mark of the car's left half also clicked, ``TWIN_SLIP_PX`` off it, under its
+    right twin's name (replacing that mark when it was there): one point marked under both names.
+    Returns (the marks, the twin's name; none when no mark has a twin)."""
+    from carbody.fit.keypoints_io import keypoint_slots
+
+    slots = keypoint_slots()
+    left = sorted(n for n in kps if not n.endswith("_right") and n + "_right" in slots)
+    if not left:
+        return kps, []
+    n = str(rng.choice(left))
+    a = rng.uniform(0.0, 2.0 * np.pi)
+    u, v = np.array(kps[n]) + TWIN_SLIP_PX * np.array([np.cos(a), np.sin(a)])
+    return {**kps, n + "_right": (float(u), float(v))}, [n + "_right"]
+
+
 def run_template(args) -> list[dict]:
     t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre, outliers, reject, swap = args
     from carbody.errors import FitError
@@ -159,7 +179,9 @@ def run_template(args) -> list[dict]:
         distance = None if distance_mm is None else distance_mm * 1000.0 / wb  # normalised units
         kps, size, focal = synthetic_view(truth, azimuth, rng, elevation, distance, noise_px, off_centre)
         kps, moved = misplace(kps, size, *outliers, rng) if outliers else (kps, [])
-        if swap:
+        if swap == "twin":
+            kps, moved = twin_slip(kps, rng)
+        elif swap:
             kps, moved = swap_pair(kps, rng)
         annotated = sorted({n.removesuffix("_right") for n in kps})
         ann_idx = [k for k, kp in enumerate(load_topology().keypoints) if kp.name in annotated]
@@ -424,7 +446,7 @@ def rejections(rows: list[dict]) -> str:
     """Marks the fits left out as misplaced, per case: how many fits left any out, how many marks,
     and how many of those were the ones moved (``--outliers``)."""
     lines = ["Marks left out as misplaced (fits that left any out; marks left out, of them moved by "
-             "--outliers or swapped by --swap-pair; moved marks kept; fits that exchanged a pair's "
+             "--outliers, swapped by --swap-pair or added by --twin-slip; moved marks kept; fits that exchanged a pair's "
              "names, of them the pair --swap-pair swapped):", "",
              "| case | fits | marks left out | of them moved | moved, kept | pairs exchanged (the swapped) |",
              "|---|---|---|---|---|---|"]
@@ -654,6 +676,9 @@ def main(argv=None) -> int:
     ap.add_argument("--swap-pair", action="store_true",
                     help="exchange the names of one random left/right pair of marks a view (the car's "
                          "left taken for the viewer's)")
+    ap.add_argument("--twin-slip", action="store_true",
+                    help=f"one random mark of each view also clicked {TWIN_SLIP_PX:g} px off it under its "
+                         "right twin's name (one point marked under both names)")
     ap.add_argument("--no-reject", action="store_true",
                     help="keep every mark (fit_wireframe's reject_outliers=False)")
     ap.add_argument("--deform-length", metavar="LX,LY,LZ",
@@ -771,7 +796,7 @@ def main(argv=None) -> int:
     with ProcessPoolExecutor(args.workers, initializer=set_joint_field, initargs=(joint, deform_length)) as pool:
         rows = [r for part in pool.map(run_template, [(t, cases, lambdas, angles, args.elevation, args.distance,
                                                           args.noise, args.off_centre, outliers, not args.no_reject,
-                                                          args.swap_pair)
+                                                          "twin" if args.twin_slip else args.swap_pair)
                                                          for t in templates]) for r in part]
     print(f"# Single-view fit, leave-one-out: {len(templates)} templates x {len(angles)} angles, "
           f"elevation {args.elevation:g}°, "
@@ -782,6 +807,7 @@ def main(argv=None) -> int:
           f"{f', deformation lengths {args.deform_length}' if deform_length else ''}"
           f"{f', {outliers[0]} mark(s) a view moved {outliers[1]:g} px' if outliers else ''}"
           f"{', one left/right pair of names exchanged' if args.swap_pair else ''}"
+          f"{f', one mark a view also clicked {TWIN_SLIP_PX:g} px off under its twin' + chr(39) + 's name' if args.twin_slip else ''}"
           f"{', every mark kept' if args.no_reject else ''} "
           f"({time.perf_counter() - t0:.0f} s)\n")
     print(summarise(rows))

@@ -370,7 +370,7 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
         spread_seen = jac @ cov @ jac.T + (KEYPOINT_NOISE * sol.scale) ** 2 * np.eye(2)
         sigmas = float(np.sqrt(miss @ np.linalg.solve(spread_seen, miss)))
         if sigmas <= OUTLIER_SIGMAS or np.linalg.norm(miss) <= OUTLIER_SPREAD * spread:
-            continue  # the rest predict it: it stays (a hidden one may be tried next)
+            continue  # the rest predict it: it stays (an influential one may be tried next)
         rejected.append(slot.name)
         slots, uv, residual = [slots[j] for j in keep], uv[keep], np.asarray(sol.residual_px, dtype=float)
     return rejected
