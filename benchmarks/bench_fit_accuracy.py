@@ -108,12 +108,12 @@ def set_joint_field(joint: tuple[float, tuple | None, bool] | None,
     deformation's broad part joins the prior instead of its local one, and the correlation
     lengths of the post-fit deformation's local part (None: ``LOCAL_LENGTH``)."""
     import carbody.fit.deform as deform
-    import carbody.fit.shape_prior as shape_prior
 
     if deform_length is not None:
         deform.LOCAL_LENGTH = deform_length
     if joint is None:
         return
+    import carbody.fit.shape_prior as shape_prior
 
     shape_prior.JOINT_FIELD_AMPLITUDE = joint[0]
     if joint[1] is not None:
