@@ -197,7 +197,8 @@ def check_keypoints(points: dict[str, tuple[float, float]],
         (slots in the order of ``points``, (k, 2) float pixel coordinates).
     Raises:
         KeypointError: an unknown name, NaN or infinite or off-image coordinates, fewer than
-            ``min_keypoints`` points, or points that are coincident or all on one line.
+            ``min_keypoints`` points, points that are coincident or all on one line, or a
+            left/right pair marked on one spot (``MIN_TWIN_SEPARATION``).
     """
     slots = keypoint_slots(topology)
     if not hasattr(points, "items"):
