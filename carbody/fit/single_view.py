@@ -155,7 +155,9 @@ def _fit_checking_marks(slots: list[KeypointSlot], uv: np.ndarray, marks: dict, 
     if not reject_outliers:
         return result
     prior_weight = marks["prior_weight"]
-    rejected, swapped = _outliers(result, prior_weight), None
+    # (a fit of the marks without one, as this one was made: whether leaving it out fits soundly)
+    refit = partial(_fit_marks, **{**marks, "deform": False})
+    rejected, swapped = _outliers(result, prior_weight, refit), None
     # A mark left out, or standing out, whose left/right twin is marked too: do the two fit with
     # their names exchanged (the car's left is the viewer's right on a front view)? (A pair
     # swapped on a front or rear view bends the whole car, so its marks may not be the ones left
@@ -314,7 +316,7 @@ def _candidates(result: FitResult, floor_px: float = 0.0) -> list[str]:
     return [result.slots[i].name for i in order if residual[i] > limit]
 
 
-def _outliers(result: FitResult, prior_weight: float) -> list[str]:
+def _outliers(result: FitResult, prior_weight: float, refit=None) -> list[str]:
     """Names of marks the rest of the car says are misplaced, worst first.
 
     A misplaced mark (a click on the wrong feature, two names swapped) bends the fitted car
@@ -325,9 +327,11 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
     the other marks predict, however far from the library, stays. A mark bent far enough can
     spread its misfit over all the others (the right twin of a point clicked on the left one's
     spot: the car narrows and turns to reach it), so when the fit fits poorly
-    (:attr:`~carbody.fit.result.FitResult.fits_poorly`) the marks whose leaving out makes the
-    fit likeliest (:func:`_influential`) are candidates too, at most ``MAX_OUTLIERS`` of them,
-    whatever their residual.
+    (:attr:`~carbody.fit.result.FitResult.fits_poorly`) a mark whose leaving out makes the solve
+    likeliest is a candidate too, whatever its residual, when the rest, fitted as this fit was
+    (``refit(slots, uv)``, view refined as it was), fit soundly (:func:`_influential`): a
+    photo no car fits as a whole — a view kept far off, a close photo fitted as if from afar —
+    loses no mark to it.
     """
     from carbody.fit.deform import KEYPOINT_NOISE
     from carbody.fit.keypoints_io import MIN_KEYPOINTS
@@ -346,7 +350,7 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
                             wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name,
                             joint_field=result.joint_field)
 
-    influential = _influential(result, fitted_without, len(slots)) if result.fits_poorly else []
+    influential = _influential(result, fitted_without, refit) if result.fits_poorly and refit else []
     tried: set[str] = set()
     rejected: list[str] = []
     while len(rejected) < MAX_OUTLIERS and len(slots) > MIN_KEYPOINTS:
@@ -376,19 +380,30 @@ def _outliers(result: FitResult, prior_weight: float) -> list[str]:
     return rejected
 
 
-def _influential(result: FitResult, fitted_without, n: int) -> list[str]:
-    """Names of the ``MAX_OUTLIERS`` marks whose leaving out makes ``result``'s solve likeliest
-    (its −log evidence falls most; each the others' solve at the same camera, unrefined: a few
-    ms a mark), most first; [] for the paper's solve, which has no evidence."""
+def _influential(result: FitResult, fitted_without, refit) -> list[str]:
+    """Names of marks whose leaving out turns ``result`` (a fit that fits poorly) sound: of the
+    ``MAX_OUTLIERS`` whose leaving out makes its solve likeliest (−log evidence falls most; each
+    the others' solve at the same camera, unrefined: a few ms a mark), those whose leaving out
+    ``refit`` fits soundly (a whole fit each), most first; [] for the paper's solve, which has
+    no evidence."""
     if result.solution.evidence is None:
         return []
+    slots, uv = result.slots, result.uv
     gains = []
-    for i in range(n):
+    for i in range(len(slots)):
         try:
             gains.append((float(result.solution.evidence - fitted_without(i).solution.evidence), i))
         except (FitError, AngleError):
             continue
-    return [result.slots[i].name for _, i in sorted(gains, reverse=True)[:MAX_OUTLIERS]]
+    sound = []
+    for _, i in sorted(gains, reverse=True)[:MAX_OUTLIERS]:
+        keep = [j for j in range(len(slots)) if j != i]
+        try:
+            if not refit([slots[j] for j in keep], uv[keep]).fits_poorly:
+                sound.append(slots[i].name)
+        except (FitError, AngleError):
+            continue
+    return sound
 
 
 def _next_candidate(slots: list[KeypointSlot], residual: np.ndarray, influential: list[str],
