@@ -146,23 +146,28 @@ def swap_pair(kps: dict, rng: np.random.Generator) -> tuple[dict, list[str]]:
     return {**kps, a: kps[b], b: kps[a]}, [a, b]
 
 
-#: --twin-slip: how far (px) from a mark its twin is clicked.
+#: --twin-slip: how far (px) from a mark its twin is clicked, at least (and twice the
+#: separation the input check refuses as one spot, MIN_TWIN_SEPARATION of the marks' spread).
 TWIN_SLIP_PX = 4.0
 
 
 def twin_slip(kps: dict, rng: np.random.Generator) -> tuple[dict, list[str]]:
-    """One random mark of the car's left half also clicked, ``TWIN_SLIP_PX`` off it, under its
-    right twin's name (replacing that mark when it was there): one point marked under both names.
-    Returns (the marks, the twin's name; none when no mark has a twin)."""
-    from carbody.fit.keypoints_io import keypoint_slots
+    """One random mark of the car's left half also clicked, ``TWIN_SLIP_PX`` off it (or further,
+    past the input check), under its right twin's name (replacing that mark when it was there):
+    one point marked under both names, as the fit sees it. Returns (the marks, the twin's name;
+    none when no mark has a twin)."""
+    import carbody.fit.keypoints_io as keypoints_io
+    from carbody.fit.solve import keypoint_spread
 
-    slots = keypoint_slots()
+    slots = keypoints_io.keypoint_slots()
+    least = getattr(keypoints_io, "MIN_TWIN_SEPARATION", 0.01)  # (a fit from before the check: its value)
     left = sorted(n for n in kps if not n.endswith("_right") and n + "_right" in slots)
     if not left:
         return kps, []
     n = str(rng.choice(left))
     a = rng.uniform(0.0, 2.0 * np.pi)
-    u, v = np.array(kps[n]) + TWIN_SLIP_PX * np.array([np.cos(a), np.sin(a)])
+    px = max(TWIN_SLIP_PX, 2.0 * least * keypoint_spread(np.array(list(kps.values()))))
+    u, v = np.array(kps[n]) + px * np.array([np.cos(a), np.sin(a)])
     return {**kps, n + "_right": (float(u), float(v))}, [n + "_right"]
 
 

@@ -306,6 +306,10 @@ OUTLIER_SPREAD = 0.03
 #: At most this many marks are left out.
 MAX_OUTLIERS = 2
 
+#: A fit that fits poorly tries this many of its most influential marks (:func:`_influential`:
+#: a whole fit each, only for such fits).
+INFLUENTIAL_TRIALS = 1
+
 
 def _candidates(result: FitResult, floor_px: float = 0.0) -> list[str]:
     """Names of marks whose residual before the deformation exceeds
@@ -382,10 +386,10 @@ def _outliers(result: FitResult, prior_weight: float, refit=None) -> list[str]:
 
 def _influential(result: FitResult, fitted_without, refit) -> list[str]:
     """Names of marks whose leaving out turns ``result`` (a fit that fits poorly) sound: of the
-    ``MAX_OUTLIERS`` whose leaving out makes its solve likeliest (−log evidence falls most; each
-    the others' solve at the same camera, unrefined: a few ms a mark), those whose leaving out
-    ``refit`` fits soundly (a whole fit each), most first; [] for the paper's solve, which has
-    no evidence."""
+    ``INFLUENTIAL_TRIALS`` whose leaving out makes its solve likeliest (−log evidence falls most;
+    each the others' solve at the same camera, unrefined: a few ms a mark), those whose leaving
+    out ``refit`` fits soundly (a whole fit each), most first; [] for the paper's solve, which
+    has no evidence."""
     if result.solution.evidence is None:
         return []
     slots, uv = result.slots, result.uv
@@ -396,7 +400,7 @@ def _influential(result: FitResult, fitted_without, refit) -> list[str]:
         except (FitError, AngleError):
             continue
     sound = []
-    for _, i in sorted(gains, reverse=True)[:MAX_OUTLIERS]:
+    for _, i in sorted(gains, reverse=True)[:INFLUENTIAL_TRIALS]:
         keep = [j for j in range(len(slots)) if j != i]
         try:
             if not refit([slots[j] for j in keep], uv[keep]).fits_poorly:
