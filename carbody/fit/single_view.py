@@ -346,19 +346,25 @@ def _outliers(result: FitResult, prior_weight: float, refit=None) -> list[str]:
     spread = keypoint_spread(uv)
     told = result.wheelbase_mm if result.wheelbase_from == "told" else None
 
-    def fitted_without(i: int) -> FitResult:  # the others, at the same camera
-        keep = [j for j in range(len(slots)) if j != i]
-        return _fit_checked([slots[j] for j in keep], uv[keep], view=result.view, library=result.library,
-                            method=result.method, prior_weight=prior_weight, refine=False,
+    def at_camera(some: list[KeypointSlot], at: np.ndarray) -> FitResult:  # fitted at the same camera
+        return _fit_checked(some, at, view=result.view, library=result.library, method=result.method,
+                            prior_weight=prior_weight, refine=False,
                             camera_distance_mm=None if result.view.distance is None else "kept",
                             wheelbase_mm=told, distance_wheelbase_mm=told, name=result.wireframe.name,
                             joint_field=result.joint_field)
 
-    influential = _influential(result, fitted_without, refit) if result.fits_poorly and refit else []
+    def fitted_without(i: int) -> FitResult:  # the others (of those still kept), at the same camera
+        keep = [j for j in range(len(slots)) if j != i]
+        return at_camera([slots[j] for j in keep], uv[keep])
+
+    influential = None if result.fits_poorly and refit else []  # found when the residuals name none
     tried: set[str] = set()
     rejected: list[str] = []
     while len(rejected) < MAX_OUTLIERS and len(slots) > MIN_KEYPOINTS:
-        i = _next_candidate(slots, residual, influential, tried)
+        i = _next_candidate(slots, residual, influential or [], tried)
+        if i is None and influential is None:
+            influential = _influential(result, at_camera, refit)
+            i = _next_candidate(slots, residual, influential, tried)
         if i is None:
             break
         tried.add(slots[i].name)
@@ -384,21 +390,23 @@ def _outliers(result: FitResult, prior_weight: float, refit=None) -> list[str]:
     return rejected
 
 
-def _influential(result: FitResult, fitted_without, refit) -> list[str]:
+def _influential(result: FitResult, at_camera, refit) -> list[str]:
     """Names of marks whose leaving out turns ``result`` (a fit that fits poorly) sound: of the
     ``INFLUENTIAL_TRIALS`` whose leaving out makes its solve likeliest (−log evidence falls most;
-    each the others' solve at the same camera, unrefined: a few ms a mark), those whose leaving
-    out ``refit`` fits soundly (a whole fit each), most first; [] for the paper's solve, which
-    has no evidence."""
+    each the others' solve at the same camera, ``at_camera(slots, uv)`` in its pixels,
+    unrefined: a few ms a mark), those whose leaving out ``refit`` (photo pixels) fits soundly
+    (a whole fit each), most first; [] for the paper's solve, which has no evidence."""
     if result.solution.evidence is None:
         return []
-    slots, uv = result.slots, result.uv
+    slots, uv, seen = result.slots, result.uv, result.marks_in_fit_camera()
     gains = []
     for i in range(len(slots)):
+        keep = [j for j in range(len(slots)) if j != i]
         try:
-            gains.append((float(result.solution.evidence - fitted_without(i).solution.evidence), i))
+            without = at_camera([slots[j] for j in keep], seen[keep])
         except (FitError, AngleError):
             continue
+        gains.append((float(result.solution.evidence - without.solution.evidence), i))
     sound = []
     for _, i in sorted(gains, reverse=True)[:INFLUENTIAL_TRIALS]:
         keep = [j for j in range(len(slots)) if j != i]
