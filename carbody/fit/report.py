@@ -8,7 +8,6 @@ measure). With the Gaussian-prior methods the weights are affine (ΣH = 1, some 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -205,11 +204,10 @@ def expected_error_line(expected_mm: dict[str, float]) -> str:
 
 def write_json(path: str | Path, data: dict) -> Path:
     """Write JSON atomically."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(data, indent=1))
-    os.replace(tmp, path)
-    return path
+    from carbody.occ.step_curves import atomic_write
+
+    text = json.dumps(data, indent=1)
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
 
 
 def draw_error_chart(errors_mm: dict[str, float], path: str | Path, title: str = "",
@@ -220,6 +218,8 @@ def draw_error_chart(errors_mm: dict[str, float], path: str | Path, title: str =
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from carbody.occ.step_curves import atomic_write
 
     topo = load_topology()
     names = [k.name for k in topo.keypoints]
@@ -237,9 +237,7 @@ def draw_error_chart(errors_mm: dict[str, float], path: str | Path, title: str =
     ax.set_title(title or f"keypoint error: mean {np.mean(vals):.1f} mm, max {np.max(vals):.1f} mm")
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    try:
+        return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110))
+    finally:
+        plt.close(fig)

@@ -59,10 +59,9 @@ def _show(args) -> int:
         check_output_file(args.png, PICTURE)
     wf = load_template(args.name, args.dir)
     if args.png:
-        from carbody.occ.step_curves import atomic_write
         from carbody.templates.drawing import draw_four_views
 
-        atomic_write(args.png, lambda tmp: draw_four_views(wf.control_points, tmp, wf.name))
+        draw_four_views(wf.control_points, args.png, wf.name)
         print(f"wrote {args.png}", file=sys.stderr)
     if args.json or not args.png:
         print(json.dumps({"name": wf.name, "control_points": wf.control_points.round(6).tolist(),

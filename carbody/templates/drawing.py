@@ -26,17 +26,15 @@ def draw_four_views(control_points: np.ndarray, path: str | Path, title: str = "
     Returns:
         the written path.
     """
-    import os
-
     import matplotlib.pyplot as plt
 
+    from carbody.occ.step_curves import atomic_write
+
     fig = four_views_figure(control_points, title, topology, keypoint_sd_mm)
-    out = Path(path)
-    tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=90)
-    plt.close(fig)
-    os.replace(tmp, out)
-    return out
+    try:
+        return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=90))
+    finally:
+        plt.close(fig)
 
 
 def four_views_figure(control_points: np.ndarray, title: str = "", topology: Topology | None = None,
