@@ -29,6 +29,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from carbody.fit.shape_prior import WHEELBASE_DISAGREEMENT
+
 ANGLES = tuple(range(0, 181, 15))
 IMAGE_WIDTH = 1000
 CAR_SPAN = 900
@@ -208,7 +210,7 @@ def run_template(args) -> list[dict]:
                                 focal_px=focal if known_focal else None, reject_outliers=reject,
                                 **kw, **kw_camera)
             dt = time.perf_counter() - t0
-            estimate = None
+            estimate = proportions = size_note = None
             if not refine and not offset and lam is None and deform == (method != "paper") and wb_told:
                 # the wheelbase the fit uses when none is given (the mix's own; told one, the
                 # shape prior is sized by it, so this is a fit of its own)
@@ -217,6 +219,12 @@ def run_template(args) -> list[dict]:
                                           method=method, refine=False, deform=False, principal_point=principal,
                                           focal_px=focal if known_focal else None, **kw_camera)
                     estimate = 100.0 * (alone.wheelbase_mm / wb - 1.0)
+                    # the second opinion its proportions give, and whether the fit notes the two disagree
+                    by_proportions = alone.wheelbase_by_proportions_mm
+                    proportions = 100.0 * (by_proportions / wb - 1.0)
+                    size_note = (alone.wheelbase_from == "library mix" and max(
+                        alone.wheelbase_mm / by_proportions, by_proportions / alone.wheelbase_mm)
+                        > 1.0 + WHEELBASE_DISAGREEMENT)
                 except FitError:  # a told distance read at a wheelbase that puts the camera in the car
                     estimate = float("nan")
             at_truth = wb / res.wheelbase_mm  # 1 when told; else the fit's own size read at the true one
@@ -239,6 +247,7 @@ def run_template(args) -> list[dict]:
                          "refined_azimuth": res.view.azimuth, "refined_elevation": res.view.elevation,
                          # the wheelbase the fit uses when none is given, vs the truth
                          "wheelbase_estimate_pct": estimate,
+                         "wheelbase_by_proportions_pct": proportions, "size_note": size_note,
                          "residual_px": float(res.solution.residual_px.mean()),
                          "moved": moved, "rejected": sorted(res.rejected_px),
                          "swapped": sorted(res.swapped_names or ()),
@@ -518,6 +527,30 @@ def summarise(rows: list[dict]) -> str:
         near = sum(abs((r["refined_azimuth"] - r["azimuth"] + 180) % 360 - 180) <= 2 for r in rs)
         out.append(f"| {lab} | {mean:.1f} | {mid:.1f} | {m30:.1f} | {m150:.1f} | {mx:.1f} | {a30:.1f} | {a150:.1f} "
                    f"| {near}/{len(rs)} | {np.mean([r['residual_px'] for r in rs]):.2f} | {sec:.3f} |")
+    return "\n".join(out)
+
+
+def size_notes(rows: list[dict], distance_told: bool) -> str:
+    """The wheelbase the fitted car's proportions give (``FitResult.wheelbase_by_proportions_mm``)
+    against the mix's own, and how often the note that the size is uncertain (the two more than
+    WHEELBASE_DISAGREEMENT apart) comes up, and when the mix's is right or far off."""
+    out = ["", "Beside it, the wheelbase the fitted car's width and height in wheelbases give (the fit's "
+           "second opinion), and the note that the car's size is uncertain (the two more than "
+           f"{100 * WHEELBASE_DISAGREEMENT:.0f} % apart; with the mix's wheelbase only), view known:", "",
+           "| method | by proportions: mean abs. | median abs. | max abs. | note said | "
+           "mix's > 10 % off: noted | mix's within 5 %: noted |", "|---|---|---|---|---|---|---|"]
+    for method in dict.fromkeys(r["method"] for r in rows):
+        rs = [r for r in rows if r["method"] == method and r.get("wheelbase_by_proportions_pct") is not None
+              and not np.isnan(r["wheelbase_estimate_pct"]) and r["deform"] == (method != "paper")
+              and r.get("camera") == ("told" if distance_told else None)]
+        if not rs:
+            continue
+        p = np.abs([r["wheelbase_by_proportions_pct"] for r in rs])
+        far = [r for r in rs if abs(r["wheelbase_estimate_pct"]) > 10]
+        near = [r for r in rs if abs(r["wheelbase_estimate_pct"]) < 5]
+        out.append(f"| {method} | {p.mean():.1f} % | {np.median(p):.1f} % | {p.max():.1f} % "
+                   f"| {sum(r['size_note'] for r in rs)} of {len(rs)} | {sum(r['size_note'] for r in far)} of {len(far)} "
+                   f"| {sum(r['size_note'] for r in near)} of {len(near)} |")
     return "\n".join(out)
 
 
@@ -836,6 +869,7 @@ def main(argv=None) -> int:
             failed = f" ({int(np.sum(np.isnan(e)))} refused: camera inside the car)" if np.isnan(e).any() else ""
             e = e[~np.isnan(e)]
             print(f"| {method} | {e.mean():.1f} % | {np.median(e):.1f} % | {e.max():.1f} %{failed} |")
+    print(size_notes(rows, args.distance is not None))
     print(per_car(rows))
     print(calibration(rows))
     print(length_reference(rows))

@@ -465,6 +465,31 @@ def test_a_told_camera_distance_gives_the_cars_size(library, template):
     assert turned.camera_distance_mm == pytest.approx(2.2 * wb)
 
 
+@pytest.mark.parametrize("template, doubted", [("Ford F-150 SuperCrew 5.5 ft", True), ("Mazda MX-5 ND", True),
+                                               ("Toyota Camry XV70", False), ("Volkswagen Golf Mk7", False)])
+def test_a_size_the_car_s_proportions_doubt_is_said(library, template, doubted):
+    """No wheelbase told, the mix of the other cars sizes the pickup ~25 % short and the
+    roadster ~20 % long; their width and height in wheelbases (narrow and low: a long car;
+    wide and tall: a short one) say so, and the fit notes that the size is uncertain. A car
+    like the library's gets no such note."""
+    from carbody.fit.report import build_report, fit_notes
+
+    t, loo, truth = _left_out(library, template)
+    wb = float(library.template_wheelbase_mm[t])
+    slots, uv = _observe(truth, View(45, 10), noise=1.0)
+    res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, View(45, 10), loo)
+    by_mix, by_proportions = abs(res.wheelbase_mm / wb - 1), abs(res.wheelbase_by_proportions_mm / wb - 1)
+    notes = [n for n in fit_notes(build_report(res)) if "size is uncertain" in n]
+    assert bool(notes) == doubted
+    if doubted:
+        assert by_mix > 0.15 and by_proportions < by_mix / 2
+        assert f"{res.wheelbase_by_proportions_mm:.0f} mm" in notes[0]
+    else:
+        assert by_mix < 0.05 and by_proportions < 0.1
+    told = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, View(45, 10), loo, wheelbase_mm=wb)
+    assert not [n for n in fit_notes(build_report(told)) if "size is uncertain" in n]
+
+
 def test_photo_from_a_few_metres_needs_the_pinhole_camera(library, topology):
     """A library car photographed from 2.2 wheelbases (≈ 6 m): the orthographic fit is far off,
     the fit told the distance lands on the marks and near the car (the paper's solve too), and

@@ -57,6 +57,9 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         "image_offset_px": [float(v) for v in result.solution.offset],
         "wheelbase_mm": result.wheelbase_mm,
         "wheelbase_from": result.wheelbase_from,  # "told", "camera distance" or "library mix"
+        # the wheelbase the fitted car's width and height in wheelbases give: a second opinion
+        # on its size (a note when it differs from the library mix's by WHEELBASE_DISAGREEMENT)
+        "wheelbase_by_proportions_mm": result.wheelbase_by_proportions_mm,
         "keypoints_annotated": len(result.slots),
         "keypoints_mm": result.keypoints_mm(),
         "residual_px": res,
@@ -121,7 +124,8 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
 def fit_notes(report: dict) -> list[str]:
     """The lines a person reads after a fit, from its report (:func:`build_report`): the fit's
     own expected error, then notes on marks left out or renamed, marks no car fits, a view
-    stopped at the edge of the search, a photo taken from close by, marks the fitted car passes
+    stopped at the edge of the search, a photo taken from close by, a size the car's proportions
+    doubt, marks the fitted car passes
     far from, and marks the fitted geometry hides. ``carbody fit`` prints them; ``carbody
     reconstruct``'s summary carries them."""
     lines = []
@@ -137,6 +141,8 @@ def fit_notes(report: dict) -> list[str]:
         notes.append(search_edge_line(report["given_view"]["azimuth_deg"], report["refined_view"]["azimuth_deg"]))
     if (report["orthographic_check"] or {}).get("closer_camera"):
         notes.append(closer_camera_line(report["orthographic_check"]))
+    if _size_uncertain(report):
+        notes.append(size_line(report["wheelbase_mm"], report["wheelbase_by_proportions_mm"]))
     if report["suspect_keypoints"]:
         notes.append("the fitted car passes far from " + ", ".join(
             f"{n} ({report['residual_px'][n]:.0f} px)" for n in report["suspect_keypoints"])
@@ -145,6 +151,26 @@ def fit_notes(report: dict) -> list[str]:
         notes.append(f"by the fitted geometry {', '.join(report['annotated_but_hidden'])} may be hidden at this "
                      "view (check the left/right names)")
     return lines + ["note: " + n for n in notes]
+
+
+def _size_uncertain(report: dict) -> bool:
+    """The library mix gave the wheelbase and the car's proportions give one further off than
+    ``WHEELBASE_DISAGREEMENT``."""
+    from carbody.fit.shape_prior import WHEELBASE_DISAGREEMENT
+
+    own, other = report["wheelbase_mm"], report.get("wheelbase_by_proportions_mm")
+    return (report["wheelbase_from"] == "library mix" and other is not None
+            and max(own / other, other / own) > 1.0 + WHEELBASE_DISAGREEMENT)
+
+
+def size_line(wheelbase_mm: float, by_proportions_mm: float) -> str:
+    """One line for a person: the car's size is uncertain (the library mix's wheelbase and the
+    one its proportions give disagree)."""
+    more = by_proportions_mm > wheelbase_mm
+    pct = 100.0 * abs(by_proportions_mm / wheelbase_mm - 1.0)
+    return (f"the car's size is uncertain: its width and height in wheelbases suggest a wheelbase of "
+            f"{by_proportions_mm:.0f} mm, {pct:.0f} % {'longer' if more else 'shorter'} than the library mix's "
+            f"{wheelbase_mm:.0f} mm the wireframe is scaled to; give --wheelbase if it is known")
 
 
 def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], swapped) -> list[str]:

@@ -147,6 +147,15 @@ class FitResult:
         return self.wheelbase_mm / NORMALISED_WHEELBASE
 
     @property
+    def wheelbase_by_proportions_mm(self) -> float | None:
+        """The wheelbase (mm) the fitted car's width and height in wheelbases give
+        (:func:`~carbody.fit.shape_prior.proportions_wheelbase_mm`): a second opinion on the
+        car's size beside the library mix's own."""
+        from carbody.fit.shape_prior import proportions_wheelbase_mm
+
+        return proportions_wheelbase_mm(self.wireframe.control_points.ravel() / self.mm_per_unit, self.library)
+
+    @property
     def camera_distance_mm(self) -> float | None:
         """A pinhole view's camera distance from the car's centre, mm (None: orthographic)."""
         return None if self.view.distance is None else float(self.view.distance * self.mm_per_unit)
