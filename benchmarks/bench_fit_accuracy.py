@@ -58,10 +58,7 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
     both = np.concatenate([truth, truth * [-1.0, 1.0, 1.0]])
     centre = (both.min(axis=0) + both.max(axis=0)) / 2
     if distance is None:
-        p = project(both, view)
-        scale = CAR_SPAN / np.ptp(p[:, 0])
-        size = (IMAGE_WIDTH, int(np.ceil(np.ptp(p[:, 1]) * scale + IMAGE_WIDTH - CAR_SPAN)))
-        offset = (np.array(size) - scale * (p.min(axis=0) + p.max(axis=0))) / 2
+        scale, offset, size = orthographic_frame(truth, view)
 
         def camera(points: np.ndarray) -> np.ndarray:
             return offset + scale * project(points, view)
@@ -90,6 +87,18 @@ def synthetic_view(truth: np.ndarray, azimuth: float, rng: np.random.Generator, 
     pts = np.array([truth[s.point_index] * s.sign for s in slots])
     uv = camera(pts) + rng.normal(0.0, noise_px, (len(slots), 2))
     return {s.name: (float(u), float(v)) for s, (u, v) in zip(slots, uv)}, size, focal
+
+
+def orthographic_frame(truth: np.ndarray, view) -> tuple[float, np.ndarray, tuple[int, int]]:
+    """SPEC's orthographic camera of :func:`synthetic_view` for a normalised (280, 3) car: (the
+    scale, pixels per normalised unit; the (2,) offset, pixels; the image size): the car, both
+    halves, centred and CAR_SPAN px wide on an IMAGE_WIDTH px wide image."""
+    from carbody.camera import project
+
+    p = project(np.concatenate([truth, truth * [-1.0, 1.0, 1.0]]), view)
+    scale = CAR_SPAN / np.ptp(p[:, 0])
+    size = (IMAGE_WIDTH, int(np.ceil(np.ptp(p[:, 1]) * scale + IMAGE_WIDTH - CAR_SPAN)))
+    return scale, (np.array(size) - scale * (p.min(axis=0) + p.max(axis=0))) / 2, size
 
 
 def left_out(t: int):
