@@ -177,7 +177,7 @@ def summary(rows: list[dict]) -> str:
         ra = [r for r in rows if r["azimuth"] == a]
         fit = np.mean([r["fit_mm"] for r in ra])
         by_ridge = {k: np.mean([r["reference_mm"][k] for r in ra]) for k in RIDGES}
-        best = _best_ridge(ra)
+        best = min(by_ridge, key=by_ridge.get)
         fits.append(fit), refs.append(by_ridge[best]), ones.append(by_ridge[one])
         better.append(min(fit, by_ridge[best]))
         out.append(f"| {a}° | {fit:.1f} | {by_ridge[best]:.1f} | {best:g} | {by_ridge[one]:.1f} | {better[-1]:.1f} |")
