@@ -800,3 +800,19 @@ def test_the_api_takes_what_the_command_line_takes(library):
         fit_wireframe(marks, View(30, 0, 120), library)
     with pytest.raises(KeypointError, match="must map names"):
         fit_wireframe(list(marks.items()), 30, library)
+
+
+def test_the_report_s_camera_projects_points_as_the_fit_does(library):
+    """A report's ``camera`` block alone puts car-frame points where the fit puts them (the
+    real-photo benchmark draws regions and wheels from it), for a pinhole camera turned toward
+    an off-centre car too."""
+    from carbody.fit.report import camera_report, project_with_camera
+
+    truth = library.points(library.original(3))
+    marks = off_centre_photo(truth, View(40, 10))
+    res = fit_wireframe(marks, 40, library, image_size=(2000, 1000), camera_distance_mm="auto",
+                        principal_point="centre", focal_px=900.0)
+    assert res.to_photo is not None
+    points = res.wireframe.control_points[::7]
+    camera = json.loads(json.dumps(camera_report(res)))
+    np.testing.assert_allclose(project_with_camera(camera, points), res.project_points(points), atol=1e-6)

@@ -55,6 +55,9 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         "camera_turn_deg": result.camera_turn_deg,
         "focal_length_px": result.focal_px,
         "image_offset_px": [float(v) for v in result.solution.offset],
+        # everything needed to project car-frame points (mm) into the photo again
+        # (:func:`project_with_camera`): the benchmarks draw regions and wheels with it
+        "camera": camera_report(result),
         "wheelbase_mm": result.wheelbase_mm,
         "wheelbase_from": result.wheelbase_from,  # "told", "camera distance" or "library mix"
         # the wheelbase the fitted car's width and height in wheelbases give: a second opinion
@@ -119,6 +122,31 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         report["error_mm_at_truth_wheelbase_mean"] = float(np.mean(list(shape_err.values())))
         report["error_mm_at_truth_wheelbase_max"] = float(np.max(list(shape_err.values())))
     return report
+
+
+def camera_report(result) -> dict:
+    """The fitted camera as JSON-ready data: the view (degrees), the pinhole's distance and aim
+    (mm; None for the orthographic camera), the image scale (px per mm) and offset (px), and the
+    homography from the fitted camera's pixels to the photo's (None: no turn)."""
+    view, unit = result.view, result.mm_per_unit
+    return {"azimuth_deg": float(view.azimuth), "elevation_deg": float(view.elevation),
+            "roll_deg": float(view.roll),
+            "distance_mm": None if view.distance is None else float(view.distance * unit),
+            "aim_mm": [float(a * unit) for a in view.aim],
+            "scale_px_per_mm": float(result.solution.scale / unit),
+            "offset_px": [float(v) for v in result.solution.offset],
+            "to_photo": None if result.to_photo is None else np.asarray(result.to_photo).tolist()}
+
+
+def project_with_camera(camera: dict, points_mm: np.ndarray) -> np.ndarray:
+    """(..., 2) photo pixels of car-frame points (mm) under a report's ``camera``
+    (:func:`camera_report`): what :meth:`carbody.fit.FitResult.project_points` gives."""
+    from carbody.camera import View, apply_homography, project
+
+    view = View(camera["azimuth_deg"], camera["elevation_deg"], camera["roll_deg"], camera["distance_mm"],
+                tuple(camera["aim_mm"]))
+    uv = project(np.asarray(points_mm, dtype=float), view, camera["scale_px_per_mm"], camera["offset_px"])
+    return uv if camera["to_photo"] is None else apply_homography(np.asarray(camera["to_photo"]), uv)
 
 
 def fit_notes(report: dict) -> list[str]:
