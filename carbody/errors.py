@@ -36,24 +36,6 @@ class AngleError(FitError):
     """A view angle given to the fit is not a number or lies outside its range."""
 
 
-class SideError(FitError):
-    """The keypoints say the photo shows the car from another view than the one given: its
-    other side or end (by their names, or fitting it far better), or a view elsewhere round the
-    car that fits them soundly where the one given fits poorly.
-
-    Attributes:
-        azimuth: the view the marks fit: the mirror (360° − θ), the other end (180° − θ or
-            180° + θ), or the view found round the car.
-    """
-
-    def __init__(self, message: str, azimuth: float):
-        super().__init__(message, azimuth)  # both in args: the error pickles (worker processes)
-        self.azimuth = azimuth
-
-    def __str__(self) -> str:
-        return str(self.args[0])
-
-
 class KeypointError(FitError):
     """Keypoint annotations are unreadable, unknown, too few, degenerate, NaN or off the image."""
 

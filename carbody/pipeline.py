@@ -23,14 +23,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from carbody.errors import CarbodyError, KeypointError, OutputError, SideError, SurfaceError
+from carbody.errors import CarbodyError, KeypointError, OutputError, SurfaceError
 
 #: The stages, in order, as the progress display names them.
 STAGES = ("view", "fit", "surfaces")
-
-#: How many times the classifier's view is turned to the one the keypoints say (its other side,
-#: then its other end).
-MAX_VIEW_TURNS = 2
 
 #: Stiffer fits tried in turn when a region of the fitted wireframe cannot be surfaced (its
 #: outline crosses itself: a car far from every template, as the leave-one-out pickup seen from
@@ -56,9 +52,8 @@ class Reconstruction:
         name: the car (STEP product name).
         image: (h, w, 3) uint8 RGB photo.
         image_path: where the photo came from, if a file.
-        view_source: ``"given"``, ``"classifier"``, or the classifier's view turned to the
-            car's other side or end, or to a view elsewhere, when the keypoints' names say so or
-            fit there far better (:class:`carbody.errors.SideError`).
+        view_source: where the search's prior came from: ``"given"`` (a view told) or
+            ``"classifier"`` (its probabilities); the search looks at every view either way.
         view_prediction: the classifier's answer (:class:`carbody.view.predict.ViewPrediction`) or None.
         fit: the wireframe fit (:class:`carbody.fit.FitResult`).
         body: the surfaced body (:class:`carbody.surface.Body`).
@@ -119,10 +114,11 @@ class Reconstruction:
         from carbody.fit.report import build_report
 
         v = self.fit.view
+        given = self.fit.given_view
         view: dict[str, Any] = {"source": self.view_source, "azimuth_deg": v.azimuth,
                                 "elevation_deg": v.elevation, "roll_deg": v.roll,
                                 "camera_distance_mm": self.fit.camera_distance_mm,
-                                "given_azimuth_deg": self.fit.given_view.azimuth}
+                                "given_azimuth_deg": None if given is None else given.azimuth}
         if self.view_prediction is not None:
             p = self.view_prediction
             view["classifier"] = {"class_deg": p.class_deg, "theta_deg": p.theta_deg, "confidence": p.confidence}
@@ -143,9 +139,9 @@ class Reconstruction:
         fit, view = report["fit"], report["view"]
         source = view["source"]
         if source == "given":
-            source = f"given {view['given_azimuth_deg']:g} deg"
+            source = f"searched, given {view['given_azimuth_deg']:g} deg"
         elif "classifier" in view:
-            source += f", classifier said {view['classifier']['class_deg']:.0f} deg"
+            source = f"searched, classifier said {view['classifier']['class_deg']:.0f} deg"
         lines = [
             f"car: {self.name}",
             f"view: {view['azimuth_deg']:.1f} deg azimuth, {view['elevation_deg']:.1f} deg elevation ({source})",
@@ -287,6 +283,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
                 principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
                 name: str | None = None, library=None, reject_outliers: bool = True,
+                view_prior_weight: float = 1.0,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
 
@@ -294,10 +291,11 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
         image: photo path or (h, w[, c]) uint8 array (grayscale and RGBA work).
         keypoints: keypoint file (the project's JSON, COCO or labelme) or {name: (u, v)} pixels.
         view: azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side) or a name
-            (``"front 30"``, ``"front 30 right"``: :func:`carbody.camera.read_view`); None asks
-            the shipped view classifier.
+            (``"front 30"``, ``"front 30 right"``: :func:`carbody.camera.read_view`): a prior on
+            the fit's search over every view; None takes the shipped view classifier's
+            probabilities as that prior.
         wheelbase_mm: the car's real wheelbase; None uses the fitted mix of the templates'.
-        elevation_deg: starting camera elevation for the view refinement.
+        elevation_deg: the camera elevation told (a prior of the search).
         camera_distance_mm: how far the camera stood from the car's centre (a pinhole camera:
             nearer parts look larger); "auto" (default: photos are taken from a few metres)
             finds it with the view; None (or "orthographic") assumes a distant camera.
@@ -310,23 +308,29 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             off-centre car uses it.
         name: the car's name in the STEP files (default: the photo's file stem).
         library: a :class:`carbody.library.Library` (default the shipped one).
-        reject_outliers: leave out marks the others say are misplaced and exchange a swapped
-            left/right pair back (:func:`carbody.fit.fit_wireframe`); False fits every mark as
-            named.
+        reject_outliers: estimate the marks robustly (leave out misplaced ones, read a mark
+            left out under its twin's name: :mod:`carbody.fit.robust`); False fits every mark
+            as named.
+        view_prior_weight: how strongly the view given, or the classifier's, counts in the
+            search (a factor on its −log prior; 0: the marks alone).
         on_stage: called with each stage's name as it starts (progress display).
 
     Raises:
         carbody.errors.CarbodyError: any bad input, in one line (unreadable image, keypoints that
             do not fit the image, a view outside 0-360, too few or degenerate keypoints, ...).
     """
-    from carbody.fit import View, fit_wireframe
+    from carbody.camera import View, read_view
+    from carbody.fit import FitOptions, ViewPrior, fit_wireframe
+    from carbody.fit.focal import focal_length_px
     from carbody.surface import build_body
-    from carbody.view.labels import angular_difference
 
     timings: dict[str, float] = {}
     rgb, image_path, ann = _read_inputs(image, keypoints)
     h, w = rgb.shape[:2]
     name = name or (image_path.stem if image_path else "car")
+    options = FitOptions(camera_distance_mm=camera_distance_mm, principal_point=principal_point,
+                         robust=reject_outliers, check_orthographic=True, view_prior_weight=view_prior_weight)
+    prior = None if view is None else View(read_view(view), elevation_deg)
 
     def stage(label: str):
         if on_stage:
@@ -334,45 +338,25 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
         return time.perf_counter()
 
     start = stage("view")
-    prediction = None
-    if view is None:
+    prediction, source = None, "given"
+    if prior is None:
+        from carbody.view.labels import CLASS_ANGLES_DEG
         from carbody.view.predict import predict_view
 
         prediction = predict_view(rgb)
-        azimuth, source = prediction.theta_deg, "classifier"
-    else:
-        from carbody.camera import read_view
-
-        azimuth, source = read_view(view), "given"
+        prior, source = ViewPrior.from_classifier(CLASS_ANGLES_DEG, prediction.probabilities,
+                                                  elevation_deg=elevation_deg), "classifier"
     timings["view"] = time.perf_counter() - start
 
     start = stage("fit")
-    from carbody.camera import check_azimuth
-    from carbody.fit.focal import focal_length_px
-
     focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
+    options = options.with_changes(focal_px=focal)
 
-    def fit_at(azimuth: float, points: dict = ann.points, reject: bool = reject_outliers, **stiffer):
-        return fit_wireframe(points, View(check_azimuth(azimuth), elevation_deg), library or default_library(),
-                             image_size=(w, h), wheelbase_mm=wheelbase_mm,
-                             camera_distance_mm=camera_distance_mm, principal_point=principal_point,
-                             focal_px=focal, reject_outliers=reject, check_orthographic=True,
-                             name=name, **stiffer)
+    def fit_with(points: dict, **stiffer):
+        return fit_wireframe(points, prior, library or default_library(), image_size=(w, h),
+                             wheelbase_mm=wheelbase_mm, options=options.with_changes(**stiffer), name=name)
 
-    tried = [azimuth]
-    while True:
-        try:
-            fit = fit_at(azimuth)
-            break
-        except SideError as exc:
-            # The classifier took the car's one side (or end) for the other, the marks tell: a
-            # right rear three-quarter view taken for the left front one is turned twice.
-            if source == "given" or len(tried) > MAX_VIEW_TURNS or any(
-                    angular_difference(exc.azimuth, a) < 1.0 for a in tried):
-                raise
-            azimuth = exc.azimuth
-            tried.append(azimuth)
-            source = f"classifier, turned to {azimuth:.0f} deg: the keypoints fit that view far better"
+    fit = fit_with(ann.points)
     timings["fit"] = time.perf_counter() - start
 
     start = stage("surfaces")
@@ -385,12 +369,11 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
         kept = {s.name: (float(u), float(v)) for s, (u, v) in zip(fit.slots, fit.uv)}
         for label, stiffer in SURFACE_FALLBACKS:
             try:
-                stiff = fit_at(azimuth, kept, False, **stiffer)
+                stiff = fit_with(kept, robust=False, **stiffer)
                 body = build_body(stiff.wireframe)
             except CarbodyError:
                 continue
-            stiff.rejected_px, stiff.rejected_uv = fit.rejected_px, fit.rejected_uv
-            stiff.rejected_looks_like, stiff.swapped_names = fit.rejected_looks_like, fit.swapped_names
+            stiff.diagnostics = fit.diagnostics
             fit, body, share = _blended_toward(fit, stiff, body)
             fallback = {"reason": str(exc), "fit": label, "share_of_fit": share}
             break

@@ -19,12 +19,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="keypoints marked on the photo: the project's JSON, COCO keypoints or labelme")
     p.add_argument("--view", default=None,
                    help="view azimuth in degrees (0 front, 90 left side, 180 rear, 270 right side) "
-                        "or a name ('front 30', 'rear 30 right'); default: the shipped view classifier")
+                        "or a name ('front 30', 'rear 30 right'): a prior on the search over every view; "
+                        "default: the shipped view classifier's probabilities")
     p.add_argument("--wheelbase", type=float, default=None,
                    help="the car's wheelbase in mm (default: fitted); told, the fit also knows "
                         "the car's width and height in mm")
     p.add_argument("--elevation", type=float, default=0.0,
-                   help="starting camera elevation, degrees (default 0; refined)")
+                   help="camera elevation told, degrees (default 0: a prior of the search)")
     add_camera_arguments(p)
     add_marks_argument(p)
     p.add_argument("--exclude-template", action="append", default=[], metavar="NAME",
@@ -81,7 +82,8 @@ def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) ->
         result = reconstruct(args.image, args.keypoints, view, args.wheelbase, name=args.name,
                              elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
                              principal_point=args.principal_point, focal_35mm=args.focal_35mm,
-                             reject_outliers=not args.keep_marks, on_stage=on_stage)
+                             reject_outliers=not args.keep_marks, view_prior_weight=args.view_weight,
+                             on_stage=on_stage)
         bar.update(1)
         bar.set_description("write")
         paths = result.write(args.out, truth)

@@ -5,14 +5,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from carbody.fit.solve import METHODS
+from carbody.fit.options import METHODS
 
 
 def add_marks_argument(p: argparse.ArgumentParser) -> None:
-    """``--keep-marks``, shared by ``fit`` and ``reconstruct``."""
+    """``--keep-marks`` and ``--view-weight``, shared by ``fit`` and ``reconstruct``."""
     p.add_argument("--keep-marks", action="store_true",
                    help="fit every mark as named: do not leave out marks the others say are "
-                        "misplaced, nor exchange a left/right pair's names back")
+                        "misplaced, nor read a mark left out under its left/right twin's name")
+    p.add_argument("--view-weight", type=float, default=1.0, metavar="W",
+                   help="how strongly the view given (or the classifier's) counts in the search over "
+                        "every view: a factor on its prior (default 1; 0: the marks alone decide)")
 
 
 def add_camera_arguments(p: argparse.ArgumentParser) -> None:
@@ -61,12 +64,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("image", help="the photo (PNG, JPEG, ...)")
     p.add_argument("--keypoints", "-k", required=True,
                    help="keypoint file: project JSON, COCO keypoints or labelme")
-    p.add_argument("--view", required=True, help="view azimuth, degrees 0–360 (0 front, 90 left side), or a "
-                                                 "name: 'front 30', 'side', 'rear 30', 'front 30 right'; "
-                                                 "refined around it (a view the marks show to be the car's "
-                                                 "other side or end, or far off, is refused naming theirs)")
+    p.add_argument("--view", default=None,
+                   help="view azimuth, degrees 0–360 (0 front, 90 left side), or a name: 'front 30', "
+                        "'side', 'rear 30', 'front 30 right'; a prior on the search over every view "
+                        "(default: none, the marks alone decide); needed with --no-refine")
     p.add_argument("--elevation", type=float, default=0.0,
-                   help="starting camera elevation, degrees (default 0; refined unless --no-refine)")
+                   help="camera elevation told, degrees (default 0: a prior, searched unless --no-refine)")
     p.add_argument("--roll", type=float, default=0.0,
                    help="camera roll of a tilted photo, degrees within ±90 (default 0; kept as given: the "
                         "refinement moves azimuth and elevation only)")
@@ -80,7 +83,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "Gaussian around the library mean; paper: the paper's plain ΣH=1, 0≤H≤1")
     add_camera_arguments(p)
     p.add_argument("--no-refine", action="store_true",
-                   help="keep the given view as it is (an 'auto' distance is still found)")
+                   help="keep the given view as it is, no search (an 'auto' distance is still found)")
     p.add_argument("--no-deform", action="store_true",
                    help="skip the smooth move onto the marked keypoints after the solve (the "
                         "solve's own along-the-car field stays)")
@@ -146,6 +149,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.fit.overlay import draw_overlay, write_image
     from carbody.fit.report import build_report, draw_error_chart, fit_notes, write_json
     from carbody.fit.focal import focal_length_px
+    from carbody.fit.options import FitOptions
     from carbody.fit.single_view import fit_wireframe
     from carbody.outputs import JSON, PHOTO, PICTURE, STEP, check_distinct, check_output_file
     from carbody.view.labels import angular_difference
@@ -153,7 +157,9 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.wireframe import write_wireframe
 
     # Every input is checked before anything is written.
-    view = View(read_view(args.view), args.elevation, args.roll)
+    if args.view is None and args.no_refine:
+        raise FitError("--no-refine keeps the view given: give --view")
+    view = None if args.view is None else View(read_view(args.view), args.elevation, args.roll)
     distance = parse_distance(args.distance)
     image = read_image(args.image)[..., ::-1].copy()  # RGB -> BGR: the overlay is drawn with OpenCV
     ann = read_keypoints(args.keypoints)
@@ -180,12 +186,12 @@ def run_fit(args: argparse.Namespace) -> int:
         raise FitError("--uncertainty needs a Gaussian-prior method (mixture or gauss): "
                        "the paper's solve has no posterior")
     focal, focal_source = focal_length_px(args.image, (w, h), args.focal_35mm)
+    options = FitOptions(method=args.method, refine=not args.no_refine, deform=False if args.no_deform else None,
+                         robust=not args.keep_marks, camera_distance_mm=distance,
+                         principal_point=args.principal_point, focal_px=focal, check_orthographic=True,
+                         view_prior_weight=args.view_weight)
     result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
-                           method=args.method, refine=not args.no_refine,
-                           deform=False if args.no_deform else None, reject_outliers=not args.keep_marks,
-                           camera_distance_mm=distance, principal_point=args.principal_point,
-                           focal_px=focal, check_orthographic=True,
-                           name=args.name or Path(args.image).stem)
+                           options=options, name=args.name or Path(args.image).stem)
     overlay = draw_overlay(image, result) if args.overlay else None
     # (the photo plane reads the photo again: only for a report that is written)
     report = build_report(result, truth, image=args.image if args.report else None)
@@ -209,8 +215,8 @@ def run_fit(args: argparse.Namespace) -> int:
     if result.camera_turn_deg:
         camera += (f", turned {result.camera_turn_deg:.1f}° from the photo's axis to the car"
                    + (f" (focal length {result.focal_px:.0f} px found)" if focal is None else ""))
-    given = result.given_view.azimuth
-    told = f"given {given:g}°, " if angular_difference(given, v.azimuth) >= 0.05 else ""
+    given = None if result.given_view is None else result.given_view.azimuth
+    told = f"given {given:g}°, " if given is not None and angular_difference(given, v.azimuth) >= 0.05 else ""
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° ({told}elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
           f"wheelbase {result.wheelbase_mm:.0f} mm ({result.wheelbase_from}) -> {args.output}")

@@ -1,8 +1,7 @@
 """The overlay picture (paper Fig. 9–10): photo, annotated (red) and reprojected (green)
 keypoints, and the fitted wireframe projected with the refined camera; marks the fit cannot
-follow (:meth:`~carbody.fit.result.FitResult.suspect_keypoints`) ringed in magenta, and
-marks left out as misplaced (``FitResult.rejected_uv``) crossed out in magenta, joined to where
-the fitted car puts them."""
+follow (the diagnostics' ``suspect``) ringed in magenta, and marks left out (the diagnostics'
+``rejected``) crossed out in magenta, joined to where the fitted car puts them."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -39,7 +38,7 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
                           thick, cv2.LINE_AA, shift=4)
     reproj = result.reprojected()
     r = 2 + 2 * thick
-    suspects = set(result.suspect_keypoints())
+    suspects = set(result.diagnostics.suspect)
     for slot, (u, v), (pu, pv) in zip(result.slots, result.uv, reproj):
         if slot.name in suspects:
             cv2.circle(out, (round(u), round(v)), 3 * r, (255, 0, 255), 2 * thick, cv2.LINE_AA)
@@ -49,8 +48,8 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
         if labels:
             label(slot, (round(u) + r + 1, round(v) - r - 1), (0, 0, 200))
     slots = keypoint_slots()
-    for name, (u, v) in result.rejected_uv.items():
-        slot = slots[name]
+    for name, mark in result.diagnostics.rejected.items():
+        (u, v), slot = mark.uv, slots[name]
         pu, pv = result.project_points(cp[slot.point_index] * slot.sign)
         cv2.line(out, (round(u), round(v)), (round(pu), round(pv)), (255, 0, 255), thick, cv2.LINE_AA)
         cv2.circle(out, (round(pu), round(pv)), r, (0, 200, 0), thick, cv2.LINE_AA)

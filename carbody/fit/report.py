@@ -43,10 +43,11 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
     from carbody.fit.visibility import visible_keypoints
 
     res = result.residuals_px()
+    diagnostics = result.diagnostics
     visible = visible_keypoints(result.view.scaled(result.mm_per_unit), result.wireframe.control_points)
     report = {
         "method": result.method,
-        "given_view": result.given_view.as_dict(),
+        "given_view": None if result.given_view is None else result.given_view.as_dict(),
         "refined_view": result.view.as_dict(),
         "image_scale_px_per_mm": result.solution.scale / result.mm_per_unit,
         "camera_distance_mm": result.camera_distance_mm,
@@ -69,22 +70,24 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         "residual_px_mean": float(np.mean(list(res.values()))),
         "residual_px_max": float(np.max(list(res.values()))),
         # −log evidence per marked coordinate (None: the paper's solve); fits_poorly: above the
-        # level no sound fit reaches (a view given far off, marks named wrongly)
-        "evidence_per_coordinate": result.evidence_per_coordinate,
-        "fits_poorly": result.fits_poorly,
+        # level no sound fit reaches (marks named wrongly, a view kept far off)
+        "evidence_per_coordinate": diagnostics.evidence_per_coordinate,
+        "fits_poorly": diagnostics.fits_poorly,
         # the car passes further from the marks, on average, than 5 % of their spread
-        "misses_marks": result.misses_marks,
-        # the refined azimuth at the edge of the range searched around the given one
-        "view_at_search_edge": result.view_at_search_edge,
+        "misses_marks": diagnostics.misses_marks,
         "visible_at_refined_view": visible,
         "annotated_but_hidden": [s.name for s in result.slots if s.name not in visible],
-        "suspect_keypoints": result.suspect_keypoints(),
-        # marks left out as misplaced: {name: px the fitted car passes from it}, and the
-        # keypoint the car puts where one was clicked, when one is near
-        "rejected_keypoints": dict(result.rejected_px),
-        "rejected_looks_like": dict(result.rejected_looks_like),
-        # a left/right pair fitted with its names exchanged, or None
-        "swapped_keypoints": None if result.swapped_names is None else list(result.swapped_names),
+        "suspect_keypoints": list(diagnostics.suspect),
+        # marks left out: {name: px the fitted car passes from it}, why ("hidden": the view found
+        # cannot see it; "misplaced": the other marks put it elsewhere), and the keypoint the car
+        # puts where one was clicked, when one is near
+        "rejected_keypoints": {n: m.px for n, m in diagnostics.rejected.items()},
+        "rejected_reasons": {n: m.reason for n, m in diagnostics.rejected.items()},
+        "rejected_looks_like": {n: m.looks_like for n, m in diagnostics.rejected.items() if m.looks_like},
+        # marks read under another name ({as clicked: as fitted}): a left/right pair exchanged, or
+        # a mark read under its twin's name; the exchanged pair, or None
+        "renamed_keypoints": dict(diagnostics.renamed),
+        "swapped_keypoints": None if diagnostics.swapped is None else list(diagnostics.swapped),
         "deformation_mm_max": result.deformation_mm,
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
@@ -95,7 +98,11 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         "photo_plane": None if image is None else fitted_plane(result, image).as_dict(),
         # an orthographic fit asked to check: its marks fitted with the camera's distance found
         # (closer_camera: that camera fits them far better), or None
-        "orthographic_check": result.orthographic_check,
+        "orthographic_check": diagnostics.closer_camera,
+        # what the view search saw (the prior, the best views scanned, the best one's margin over
+        # the next, nats), or None for a view kept as given; the solves the fit took
+        "view_search": diagnostics.view_search,
+        "solves": diagnostics.solves,
     }
     sd = result.keypoint_sd_mm()
     if sd is not None:
@@ -151,22 +158,20 @@ def project_with_camera(camera: dict, points_mm: np.ndarray) -> np.ndarray:
 
 def fit_notes(report: dict) -> list[str]:
     """The lines a person reads after a fit, from its report (:func:`build_report`): the fit's
-    own expected error, then notes on marks left out or renamed, marks no car fits, a view
-    stopped at the edge of the search, a photo taken from close by, a size the car's proportions
-    doubt, marks the fitted car passes
-    far from, and marks the fitted geometry hides. ``carbody fit`` prints them; ``carbody
+    own expected error, then notes on marks left out or renamed, marks no car fits, a photo
+    taken from close by, a size the car's proportions doubt, marks the fitted car passes far
+    from, and marks the fitted geometry hides. ``carbody fit`` prints them; ``carbody
     reconstruct``'s summary carries them."""
     lines = []
     if "expected_error_mm" in report:
         lines.append(expected_error_line(report["expected_error_mm"]))
-    notes = marks_notes(report["rejected_keypoints"], report["rejected_looks_like"], report["swapped_keypoints"])
+    notes = marks_notes(report["rejected_keypoints"], report["rejected_looks_like"], report["renamed_keypoints"],
+                        report.get("rejected_reasons", {}))
     if report["fits_poorly"]:
         notes.append(poor_fit_line(report["evidence_per_coordinate"], report["residual_px_mean"]))
     elif report["misses_marks"]:
         notes.append(f"the fitted car misses the marks by {report['residual_px_mean']:.0f} px on average: "
                      "the wireframe is not to be trusted; check the marks' names and places, and the view given")
-    if report["view_at_search_edge"]:
-        notes.append(search_edge_line(report["given_view"]["azimuth_deg"], report["refined_view"]["azimuth_deg"]))
     if (report["orthographic_check"] or {}).get("closer_camera"):
         notes.append(closer_camera_line(report["orthographic_check"]))
     if _size_uncertain(report):
@@ -201,36 +206,41 @@ def size_line(wheelbase_mm: float, by_proportions_mm: float) -> str:
             f"{wheelbase_mm:.0f} mm the wireframe is scaled to; give --wheelbase if it is known")
 
 
-def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], swapped) -> list[str]:
-    """Lines for a person about marks the fit left out or renamed (the report's
-    ``rejected_keypoints``, ``rejected_looks_like``, ``swapped_keypoints``)."""
+def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], renamed: dict[str, str],
+                reasons: dict[str, str] | None = None) -> list[str]:
+    """Lines for a person about marks the fit left out or read under another name (the report's
+    ``rejected_keypoints``, ``rejected_looks_like``, ``renamed_keypoints``, ``rejected_reasons``)."""
+    from carbody.fit.diagnostics import HIDDEN
+
+    reasons = reasons or {}
     lines = []
-    if swapped:
+    swapped = sorted(a for a, b in renamed.items() if renamed.get(b) == a)
+    if len(swapped) == 2:
         lines.append(f"{swapped[0]} and {swapped[1]} fit with their names exchanged (the car's left is "
                      "the viewer's right seen from the front): fitted so")
-    if rejected_px:
-        lines.append("left out as misplaced: " + ", ".join(
-            f"{n} ({px:.0f} px from the car the other marks give"
-            + (f"; where it puts {looks_like[n]}" if n in looks_like else "") + ")"
-            for n, px in rejected_px.items()) + ": check those marks")
+    for a, b in renamed.items():
+        if renamed.get(b) != a:
+            lines.append(f"{a} fits as {b}, its left/right twin: fitted so (check its name)")
+
+    def listed(names):
+        return ", ".join(f"{n} ({rejected_px[n]:.0f} px from the car the other marks give"
+                         + (f"; where it puts {looks_like[n]}" if n in looks_like else "") + ")" for n in names)
+
+    hidden = [n for n in rejected_px if reasons.get(n) == HIDDEN]
+    misplaced = [n for n in rejected_px if n not in hidden]
+    if misplaced:
+        lines.append("left out as misplaced: " + listed(misplaced) + ": check those marks")
+    if hidden:
+        lines.append("left out, the view found cannot see them: " + listed(hidden)
+                     + ": check their left/right names")
     return lines
 
 
 def poor_fit_line(evidence_per_coordinate: float, residual_px_mean: float) -> str:
-    """One line for a person: no car near the view fits the marks (the report's ``fits_poorly``;
-    for a refined view, none elsewhere fits them soundly either, or the fit would have been
-    refused naming it: :func:`carbody.fit.single_view._check_elsewhere`)."""
-    return (f"no car fits the marks near this view (mean residual {residual_px_mean:.1f} px, −log evidence "
+    """One line for a person: no car near the view found fits the marks (the report's ``fits_poorly``)."""
+    return (f"no car fits the marks (mean residual {residual_px_mean:.1f} px, −log evidence "
             f"{evidence_per_coordinate:.0f} per coordinate, where fits at a photo's own view stay under 10): the "
-            "wireframe is not to be trusted; check the marks' names and places, and the view given")
-
-
-def search_edge_line(given_deg: float, refined_deg: float) -> str:
-    """One line for a person: the refined view settled at the edge of the range searched."""
-    from carbody.fit.refine import AZIMUTH_RANGE_DEG
-
-    return (f"the view settled at {refined_deg:.1f}°, the edge of the ±{AZIMUTH_RANGE_DEG:g}° searched around the "
-            f"{given_deg:.0f}° given: the photo's view likely lies further off; give a nearer view")
+            "wireframe is not to be trusted; check the marks' names and places")
 
 
 def closer_camera_line(closer: dict) -> str:

@@ -1,6 +1,7 @@
 """A fitted car: :class:`FitResult`, what :func:`carbody.fit.single_view.fit_wireframe`
-returns — the wireframe in mm, the refined camera, the mix, and what the report, the overlay and
-the uncertainty picture read from them.
+returns — the wireframe in mm, the camera found, the mix, and what the report, the overlay and
+the uncertainty picture read from them; what the fit says about the marks is its
+``diagnostics`` (:mod:`carbody.fit.diagnostics`).
 """
 from __future__ import annotations
 
@@ -12,35 +13,12 @@ import numpy as np
 from carbody.camera import View, apply_homography, project
 from carbody.errors import FitError
 from carbody.fit.keypoints_io import KeypointSlot
-from carbody.fit.refine import AZIMUTH_RANGE_DEG
-from carbody.fit.solve import MixSolution, keypoint_covariance, keypoint_spread
+from carbody.fit.diagnostics import FitDiagnostics
+from carbody.fit.solve import MixSolution, keypoint_covariance
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
-from carbody.view.labels import angular_difference
 from carbody.wireframe import Wireframe
-
-#: A Gaussian-prior fit whose −log evidence per marked coordinate exceeds this fits its marks
-#: poorly (:attr:`FitResult.fits_poorly`): set between the leave-one-out templates' fits at
-#: their true view and at the car's other end, which lie well apart
-#: (``test_a_view_given_for_the_car_s_other_end_is_refused``).
-END_SUSPECT_EVIDENCE = 10.0
-
-#: A refined azimuth within this many degrees of the refinement's range is at its edge …
-SEARCH_EDGE_DEG = 0.5
-
-
-def at_search_edge(view: View, centre: View) -> bool:
-    """Whether ``view``'s azimuth lies at the edge of the range searched around ``centre``'s."""
-    return bool(angular_difference(view.azimuth, centre.azimuth) > AZIMUTH_RANGE_DEG - SEARCH_EDGE_DEG)
-
-
-
-#: A mark is suspect when its residual exceeds this many times the median residual …
-SUSPECT_RESIDUAL_RATIO = 4.0
-
-#: … and this fraction of the marks' RMS spread about their centre (≈ 14 px for a car 900 px wide).
-SUSPECT_RESIDUAL_SPREAD = 0.05
 
 
 @dataclass
@@ -49,7 +27,7 @@ class FitResult:
 
     Attributes:
         wireframe: the new model, left half, mm (car frame).
-        view: the refined view; ``given_view`` the one passed in.
+        view: the view found (or kept); ``given_view`` the one told (None: none was).
         solution: the mix at the refined view (normalised units).
         slots: the annotated keypoints; ``uv`` their pixels (k, 2).
         wheelbase_mm: the wheelbase the model was scaled to.
@@ -66,28 +44,17 @@ class FitResult:
         wheelbase_from: where ``wheelbase_mm`` came from: ``"told"``, ``"camera distance"``
             (a told distance against the perspective's) or ``"library mix"`` (the fitted mix
             of the templates' own wheelbases).
-        rejected_px: marks left out as misplaced ({name: how far the fitted car passes from
-            it, px}); not in ``slots``. ``rejected_uv``: their pixels; ``rejected_looks_like``:
-            {mark: the keypoint the fitted car puts where it was clicked}, when one is near.
-        swapped_names: a left/right pair of marks fitted with their names exchanged (both
-            misplaced as named, both fitting swapped), or None.
         solve_residual_px: (k,) the marks' residuals before the deformation (None: no
             deformation, see ``solution.residual_px``).
         joint_field: whether the solve had the local displacement field in its prior.
-        search_view: the view the refinement last searched around (the given one, or, when the
-            view settled at the edge of that range, where it settled: ``MAX_VIEW_WALKS``).
-        orthographic_check: an orthographic fit asked to check (``check_orthographic``): its
-            marks fitted with the camera's distance found, against it
-            (:func:`~carbody.fit.single_view._orthographic_check`: ``camera_distance_mm`` found,
-            ``residual_px_mean`` of that fit and ``orthographic_residual_px_mean``, both before
-            the deformation,
-            ``evidence_gain_per_coordinate``, and ``closer_camera``: whether that camera fits
-            them far better); else None. ``closer_camera`` (property): that check when it says so.
+        diagnostics: what the fit says about the marks and the view
+            (:class:`~carbody.fit.diagnostics.FitDiagnostics`: marks left out and why, names
+            read exchanged, suspect marks, how well the car explains the marks, the search).
     """
 
     wireframe: Wireframe
     view: View
-    given_view: View
+    given_view: View | None
     solution: MixSolution
     slots: list[KeypointSlot]
     uv: np.ndarray
@@ -99,48 +66,9 @@ class FitResult:
     focal_px: float | None = None
     camera_turn_deg: float = 0.0
     wheelbase_from: str = "library mix"
-    rejected_px: dict[str, float] = field(default_factory=dict)
-    rejected_uv: dict[str, tuple[float, float]] = field(default_factory=dict)
-    rejected_looks_like: dict[str, str] = field(default_factory=dict)
-    swapped_names: tuple[str, str] | None = None
     solve_residual_px: np.ndarray | None = field(default=None, repr=False)
     joint_field: bool = True
-    orthographic_check: dict | None = None
-    search_view: View | None = None
-
-    @property
-    def evidence_per_coordinate(self) -> float | None:
-        """The fit's −log evidence per marked coordinate (Gaussian-prior methods; None for the
-        paper's solve): ≤ 6.1 on the leave-one-out cars' own marks at their views, with 1 or 5 px
-        of noise (BENCHMARKS.md, ``--other-end``), ≤ 8.2 over the end-to-end runs (the pickup's
-        stiffer refits; ``bench_end_to_end.py``); above ``END_SUSPECT_EVIDENCE`` no car near the
-        view fits the marks (:meth:`fits_poorly`; a view elsewhere that fits them soundly is
-        refused naming it, :func:`~carbody.fit.single_view._check_elsewhere`)."""
-        evidence = self.solution.evidence
-        return None if evidence is None else float(evidence) / (2 * len(self.slots))
-
-    @property
-    def fits_poorly(self) -> bool:
-        """No car near the refined view fits the marks (``evidence_per_coordinate`` above
-        ``END_SUSPECT_EVIDENCE``): marks named wrongly, or a view kept unrefined far off (a
-        refined one is refused when a view elsewhere fits soundly,
-        :func:`~carbody.fit.single_view._check_elsewhere`)."""
-        value = self.evidence_per_coordinate
-        return value is not None and value > END_SUSPECT_EVIDENCE
-
-    @property
-    def view_at_search_edge(self) -> bool:
-        """The refined azimuth settled at the edge of the range the refinement last searched
-        (``AZIMUTH_RANGE_DEG`` around ``search_view``, after ``MAX_VIEW_WALKS`` searches moved
-        on): the photo's view likely lies further off."""
-        return at_search_edge(self.view, self.search_view or self.given_view)
-
-    @property
-    def closer_camera(self) -> dict | None:
-        """The orthographic check (``orthographic_check``) when a camera close by fits the marks
-        far better, else None."""
-        check = self.orthographic_check
-        return check if check is not None and check["closer_camera"] else None
+    diagnostics: FitDiagnostics = field(default_factory=FitDiagnostics)
 
     @property
     def mm_per_unit(self) -> float:
@@ -220,24 +148,6 @@ class FitResult:
         """{name: reprojection distance, px} per annotated keypoint."""
         d = np.linalg.norm(self.reprojected() - self.uv, axis=1)
         return {s.name: float(e) for s, e in zip(self.slots, d)}
-
-    @property
-    def misses_marks(self) -> bool:
-        """The fitted car passes, on average, further from the marks than
-        ``SUSPECT_RESIDUAL_SPREAD`` of their spread: a car no better than a guess, whatever the
-        method (the paper's solve has no evidence to tell it by, :attr:`fits_poorly`; a body
-        refitted stiffer to be surfaced, :func:`carbody.pipeline.reconstruct`, is such a car's)."""
-        return bool(np.mean(list(self.residuals_px().values())) > SUSPECT_RESIDUAL_SPREAD * keypoint_spread(self.uv))
-
-    def suspect_keypoints(self) -> list[str]:
-        """Marks the fit cannot follow, worst first: a reprojection residual over
-        ``SUSPECT_RESIDUAL_RATIO`` × the median and over ``SUSPECT_RESIDUAL_SPREAD`` × the marks'
-        spread (a mark in the wrong place, or two names swapped)."""
-        res = self.residuals_px()
-        spread = keypoint_spread(self.uv)
-        limit = max(SUSPECT_RESIDUAL_RATIO * float(np.median(list(res.values()))),
-                    SUSPECT_RESIDUAL_SPREAD * spread)
-        return sorted((n for n, r in res.items() if r > limit), key=lambda n: -res[n])
 
     def marks_in_fit_camera(self) -> np.ndarray:
         """(k, 2) the marks in the fitted camera's pixels: ``uv``, or, when the camera was turned

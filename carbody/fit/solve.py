@@ -225,6 +225,12 @@ class MixSolution:
         posterior: how far the shape is pinned (``"gauss"``/``"mixture"``): a
             :class:`ShapePosterior`, from which :func:`keypoint_covariance` gives each
             keypoint's uncertainty.
+        evidence_px: ``evidence`` as the density of the marks' pixels (−log, nats; the
+            normalising terms of the λ noise and the marks' spread ρ added), so fits of
+            different sets of marks compare (:mod:`carbody.fit.robust`).
+        leverage: (k, 2, 2) the hat matrix's diagonal blocks: how much of each mark's (u, v)
+            its own fit follows (the leave-one-out residual is (I − leverage)⁻¹ · residual).
+        rho: the marks' RMS spread about their centre per coordinate, px (the solve's unit).
     """
 
     shape: np.ndarray | None
@@ -238,6 +244,9 @@ class MixSolution:
     evidence: float | None = None
     view: View | None = None
     posterior: "ShapePosterior | None" = None
+    evidence_px: float | None = None
+    leverage: np.ndarray | None = None
+    rho: float | None = None
 
 
 @dataclass
@@ -260,7 +269,7 @@ class ShapePosterior:
         keypoint_basis: (3·35, q) the shape basis' keypoint rows (a's effect on the keypoints).
         inflation: the covariance's scale factor (≥ 1).
         view_spread: (n, 3·35) or None: each refined view angle's share, the keypoints' move
-            per one standard deviation of that angle (`carbody.fit.single_view._view_spread` adds it
+            per one standard deviation of that angle (:func:`carbody.fit.search.view_spread` adds it
             after the refinement); its outer products join the covariance.
     """
 
@@ -547,9 +556,21 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
     # the centred image has 2k − 2 free rows
     posterior.inflation = max(1.0, float(rvec @ rvec) / (prior_weight * max(2 * len(z) - 2, 1)))
     H = model.weights(a)
+    m = 2 * len(z) - 2
     return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
-                       residual_vector=rvec, evidence=evidence, posterior=posterior)
+                       residual_vector=rvec, evidence=evidence, posterior=posterior,
+                       evidence_px=evidence + 0.5 * m * np.log(2.0 * np.pi * prior_weight) + m * np.log(rho),
+                       leverage=_leverage(AB @ V, e, g, prior_weight, len(z)), rho=rho)
+
+
+def _leverage(ABV: np.ndarray, e: np.ndarray, g: float, lam: float, k: int) -> np.ndarray:
+    """(k, 2, 2) the diagonal blocks of the solve's hat matrix (how much of each mark's own
+    (u, v) its fit follows), at the scale g: the shape's part g²·ABV·diag(1/(g²e + λ))·ABVᵀ
+    (the ridge solve's smoother in the singular basis) plus the offset's 1/k per axis."""
+    blocks = ABV.reshape(k, 2, -1)
+    hat = np.einsum("kar,r,kbr->kab", blocks, g * g / (g * g * e + lam), blocks)
+    return hat + np.eye(2) / k
 
 
 def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:

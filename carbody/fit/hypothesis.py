@@ -1,0 +1,214 @@
+"""One measure of how well the library explains the marks at a view: :class:`Scorer`.
+
+A hypothesis is a camera (a view and, for a pinhole, its distance) and which marks it explains.
+Its score is −log of how likely the marks are under it (nats, the marks' pixels), the sum of
+
+- the density of the marks it explains under the library's shape prior at that camera (the
+  solve's evidence, :mod:`carbody.fit.solve`, taken in the photo's pixels, so hypotheses
+  explaining different marks compare), with the charge on a car wider, longer or taller than
+  any template (:func:`~carbody.fit.shape_prior.implausibility`);
+- for each mark it leaves out, the density of a click anywhere on the photo times the prior
+  chance of a misplaced mark: a mark the camera cannot see (no region at it faces a camera near
+  this one — the names decide what is visible) and a mark the others put far from where it was
+  clicked (:mod:`carbody.fit.robust`) are left out alike;
+- the view prior (:class:`~carbody.fit.view_prior.ViewPrior`).
+
+The view search (:mod:`carbody.fit.search`) minimises it over every view; the twin hypotheses
+(:mod:`carbody.fit.robust`) compare names by it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from carbody.camera import View
+from carbody.errors import AngleError, FitError
+from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
+from carbody.fit.options import FitOptions
+from carbody.fit.shape_prior import implausibility, library_mean, prepared
+from carbody.fit.solve import MixSolution, keypoint_spread, solve_gauss, solve_simplex
+from carbody.fit.view_prior import ViewPrior
+from carbody.fit.visibility import FacingTable
+from carbody.library import Library
+from carbody.topology import load_topology
+
+
+@dataclass(frozen=True)
+class Marks:
+    """The marks as the fit reads them: their keypoint slots and (k, 2) pixels, in the camera
+    the solve works in (the photo's, or a camera turned toward an off-centre car)."""
+
+    slots: tuple[KeypointSlot, ...]
+    uv: np.ndarray
+
+    @property
+    def names(self) -> list[str]:
+        return [s.name for s in self.slots]
+
+    @property
+    def spread(self) -> float:
+        """The marks' RMS distance from their centre, px."""
+        return keypoint_spread(self.uv)
+
+    def renamed(self, names: dict[str, str]) -> "Marks":
+        """The marks with some renamed ({name as clicked: name fitted})."""
+        slots = keypoint_slots()
+        return Marks(tuple(slots[names.get(s.name, s.name)] for s in self.slots), self.uv)
+
+    def at(self, uv: np.ndarray) -> "Marks":
+        """The same names at other pixels (the marks seen by a turned camera)."""
+        return Marks(self.slots, np.asarray(uv, dtype=float))
+
+
+@dataclass
+class Hypothesis:
+    """A camera and the marks it explains, scored (:class:`Scorer`).
+
+    Attributes:
+        view: the camera (normalised units; a pinhole's aim settled on the fitted car).
+        marks: the marks, as named under this hypothesis (a twin exchange renames some).
+        kept: (k,) bool, the marks in the solve; hidden: (k,) bool, those the view cannot see.
+        solution: the solve of the kept marks.
+        score: −log p of all the marks and the view, nats (module docstring).
+        prior: the view prior's share of it.
+        renamed: {name as clicked: name fitted} of a twin exchange, or empty.
+    """
+
+    view: View
+    marks: Marks
+    kept: np.ndarray
+    hidden: np.ndarray
+    solution: MixSolution
+    score: float
+    prior: float
+    renamed: dict[str, str]
+
+    @property
+    def rejected(self) -> list[str]:
+        """Names of the marks left out as misplaced (kept out though the view sees them)."""
+        return [n for n, k, h in zip(self.marks.names, self.kept, self.hidden) if not k and not h]
+
+    @property
+    def hidden_names(self) -> list[str]:
+        return [n for n, h in zip(self.marks.names, self.hidden) if h]
+
+    @property
+    def kept_slots(self) -> list[KeypointSlot]:
+        return [s for s, k in zip(self.marks.slots, self.kept) if k]
+
+    @property
+    def kept_uv(self) -> np.ndarray:
+        return self.marks.uv[self.kept]
+
+
+class Scorer:
+    """Scores hypotheses of one photo's marks (module docstring).
+
+    Args:
+        library: the model library.
+        marks: the checked marks.
+        options: how to fit (method, λ, the joint field, the policy).
+        wheelbase_mm: a told wheelbase (the shape prior is then sized in mm), or None.
+        prior: the view prior.
+        image_size: (width, height) px: a misplaced click lands anywhere on it (default: twice
+            the marks' extent).
+    """
+
+    def __init__(self, library: Library, marks: Marks, options: FitOptions, wheelbase_mm: float | None,
+                 prior: ViewPrior, image_size: tuple[int, int] | None = None):
+        self.library, self.marks, self.options, self.prior = library, marks, options, prior
+        self.wheelbase_mm = wheelbase_mm
+        self.policy = options.policy
+        method = options.method
+        self._model = prepared(library, method, wheelbase_mm, field=options.joint_field)
+        # the search's cheap solve: the library's span alone (no joint field), one Newton round
+        self._cheap = self._model if method == "paper" else prepared(library, method, wheelbase_mm, field=False)
+        self._facing = _facing_table(library)
+        row = {n: i for i, n in enumerate(self._facing.names)}
+        self._rows = np.array([row[n] for n in marks.names])
+        w, h = image_size if image_size is not None else 2.0 * np.ptp(marks.uv, axis=0) + 1.0
+        #: −log density of a misplaced mark: a click anywhere on the photo, at the prior chance of one
+        self.outlier_nats = float(np.log(float(w) * float(h)) - np.log(self.policy.outlier_probability))
+        self.solves = 0
+
+    def with_marks(self, marks: Marks) -> "Scorer":
+        """The same scorer for renamed or turned marks (prepared models shared)."""
+        other = object.__new__(Scorer)
+        other.__dict__.update(self.__dict__)
+        other.marks = marks
+        row = {n: i for i, n in enumerate(self._facing.names)}
+        other._rows = np.array([row[n] for n in marks.names])
+        return other
+
+    def hidden(self, view: View) -> np.ndarray:
+        """(k,) bool: the marks no region faces at ``view`` (within the policy's margin)."""
+        facing = self._facing.facing(view.azimuth, view.elevation, self.policy.visibility_margin_deg)[:, 0]
+        return ~facing[self._rows]
+
+    def solve(self, view: View, kept: np.ndarray, cheap: bool = False) -> MixSolution:
+        """The mix of the library that best explains the kept marks at ``view``, with its
+        evidence in the marks' pixels (``evidence_px``).
+
+        Raises:
+            FitError: no car reproduces them at a positive image scale; AngleError: a pinhole
+                camera inside the car.
+        """
+        self.solves += 1
+        slots = [s for s, k in zip(self.marks.slots, kept) if k]
+        uv = self.marks.uv[kept]
+        lam = self.options.prior_weight
+        if self.options.method == "paper":
+            sol = solve_simplex(self._model, slots, uv, view, self.library.S, rounds=1 if cheap else 2)
+            m = 2 * len(uv) - 2
+            rho = float(np.sqrt(np.mean((uv - uv.mean(axis=0)) ** 2)))
+            # no posterior: its residual read as noise of λ's variance
+            sol.evidence_px = sol.cost / (2 * lam) + 0.5 * m * np.log(2 * np.pi * lam) + m * np.log(rho)
+            return sol
+        sol = solve_gauss(self._cheap if cheap else self._model, load_topology().keypoint_point_indices, slots, uv,
+                          view, lam, mixture=self.options.method == "mixture", rounds=1 if cheap else 2)
+        charge = implausibility(sol.shape, self.library, self.wheelbase_mm)
+        sol.evidence += charge
+        sol.evidence_px += charge
+        return sol
+
+    def score(self, view: View, kept: np.ndarray, solution: MixSolution) -> tuple[float, float]:
+        """(the hypothesis' score, its view prior's share), nats."""
+        prior = self.prior.cost(view)
+        return float(solution.evidence_px + (len(kept) - kept.sum()) * self.outlier_nats + prior), prior
+
+    def hypothesis(self, view: View, kept: np.ndarray | None = None, cheap: bool = False,
+                   rejections: int | None = None) -> Hypothesis | None:
+        """The hypothesis ``view`` with the marks it can see (of ``kept``, default all), those
+        the others say are misplaced left out (up to ``rejections``; default the policy's most,
+        :func:`carbody.fit.robust.leave_out_misplaced`); None when too few marks remain or no
+        car fits them there."""
+        from carbody.fit.robust import leave_out_misplaced, most_rejected
+
+        hidden = self.hidden(view)
+        kept = ~hidden if kept is None else (np.asarray(kept, dtype=bool) & ~hidden)
+        if kept.sum() < self.policy.min_kept:
+            return None
+        try:
+            sol = self.solve(view, kept, cheap)
+            if self.options.robust_marks:
+                limit = most_rejected(len(kept), int(kept.sum()), self.policy)
+                kept, sol = leave_out_misplaced(self, view, kept, sol, limit if rejections is None else
+                                                min(limit, rejections), cheap)
+        except (FitError, AngleError):
+            return None
+        settled = sol.view if sol.view is not None else view
+        score, prior = self.score(settled, kept, sol)
+        return Hypothesis(settled, self.marks, kept, hidden, sol, score, prior, {})
+
+
+def _facing_table(library: Library) -> FacingTable:
+    """The facing table of the library's mean car, built once per library."""
+    from carbody.fit.shape_prior import _cached
+
+    return _cached(library, "facing table", lambda: FacingTable(library_mean(library).reshape(-1, 3)))
+
+
+def with_view(hypothesis: Hypothesis, **changes) -> View:
+    """The hypothesis' view with some fields changed."""
+    return replace(hypothesis.view, **changes)

@@ -1,0 +1,130 @@
+"""One robust estimate of the marks: which to leave out, and which to read under their twin's name.
+
+A person's marks are mostly right, a few not: a click on the wrong feature, a left/right pair
+whose names were exchanged (the car's left is the viewer's right from the front), a mark clicked
+under its twin's name. All of them are one thing to the fit: a mark whose density under the car
+the other marks give is lower than that of a click anywhere on the photo times the prior chance
+of a mistake. The score of a hypothesis (:mod:`carbody.fit.hypothesis`) counts each mark at the
+lower of the two, so
+
+- :func:`leave_out_misplaced` leaves out, one at a time, the mark the others explain worst while
+  it is worse explained than a misplaced one: its density given the others comes in closed form
+  from the solve's leave-one-out residual and leverage (no refit per mark), with the marks'
+  noise read from the others' residuals, so a car unlike every template, which misses all its
+  genuine marks by a few pixels, keeps them; and only a mark the fit cannot follow either (its
+  own residual stands out), so a feature of this car the library bends to stays;
+- :func:`twin_exchanges` tries the discrete hypotheses a mark left out suggests — the pair's names
+  exchanged, or the mark read under its twin's name when that one is not marked — each scored as
+  the view search scores any hypothesis, and keeps the one that explains the marks clearly better.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from carbody.camera import View
+from carbody.errors import AngleError, FitError
+from carbody.policy import FitPolicy
+from carbody.wireframe import RIGHT_SUFFIX
+
+#: The median of a χ² variable with two degrees of freedom is 2·ln 2; its mean is 2.
+CHI2_2_MEAN = 2.0
+
+
+def conditional_costs(solution, prior_weight: float, floor_px: float, residual_ratio: float) -> np.ndarray:
+    """(k,) −log density (nats, pixels) of each mark under the car the other marks give, at the
+    same camera; −inf for a mark never to be left out: the others place it within ``floor_px``
+    of where it was clicked, or the fit follows it to within ``residual_ratio`` × the marks'
+    median residual (a feature of this car the library can bend to, not a misplaced click).
+
+    Closed form from the solve's hat matrix: the leave-one-out residual is (I − Hᵢᵢ)⁻¹·eᵢ with
+    covariance σ²·(I − Hᵢᵢ)⁻¹ (exact for the linear Gaussian solve at its scale; the mixture's
+    weights and the scale move a little). σ² is λ's noise, inflated by the other marks' own
+    standardised residuals when they fit worse than λ allows (a car unlike the library, careless
+    clicks): a mark is judged against the noise the rest show, not the prior's.
+    """
+    k = len(solution.residual_px)
+    e = solution.residual_vector[:2 * k].reshape(k, 2)
+    inverse = np.linalg.inv(np.eye(2) - solution.leverage)
+    t2 = np.einsum("ka,kab,kb->k", e, inverse, e) / prior_weight
+    others = np.maximum(1.0, (t2.sum() - t2) / (CHI2_2_MEAN * max(k - 1, 1)))
+    covariance = (prior_weight * others)[:, None, None] * inverse * solution.rho ** 2  # px²
+    nats = 0.5 * t2 / others + 0.5 * np.log(np.linalg.det(2.0 * np.pi * covariance))
+    apart = np.linalg.norm(np.einsum("kab,kb->ka", inverse, e), axis=1) * solution.rho
+    residual = np.asarray(solution.residual_px, dtype=float)
+    stands_out = residual > residual_ratio * float(np.median(residual))
+    return np.where((apart > floor_px) & stands_out, nats, -np.inf)
+
+
+def most_rejected(marked: int, visible: int, policy: FitPolicy) -> int:
+    """How many marks a hypothesis may leave out as misplaced (``max_rejected_fraction`` of the
+    marks, keeping ``min_kept``)."""
+    return max(0, min(int(policy.max_rejected_fraction * marked), visible - policy.min_kept))
+
+
+def leave_out_misplaced(scorer, view: View, kept: np.ndarray, solution, limit: int, cheap: bool = False):
+    """(kept, solution): the marks the others explain worse than a misplaced click left out, one
+    at a time (each a solve of the rest), at most ``limit`` (module docstring)."""
+    if solution.leverage is None:
+        return kept, solution
+    floor = scorer.policy.outlier_floor_spread * scorer.marks.spread
+    for _ in range(limit):
+        nats = conditional_costs(solution, scorer.options.prior_weight, floor, scorer.policy.outlier_residual_ratio)
+        worst = int(np.argmax(nats))
+        if not nats[worst] > scorer.outlier_nats:
+            break
+        trial = kept.copy()
+        trial[np.flatnonzero(kept)[worst]] = False
+        try:
+            solution = scorer.solve(view, trial, cheap)
+        except (FitError, AngleError):
+            break
+        kept = trial
+    return kept, solution
+
+
+def twin_name(name: str) -> str:
+    """The mirror twin's name of a keypoint (``x`` ↔ ``x_right``)."""
+    return name.removesuffix(RIGHT_SUFFIX) if name.endswith(RIGHT_SUFFIX) else name + RIGHT_SUFFIX
+
+
+def twin_renames(hypothesis, policy: FitPolicy) -> list[dict[str, str]]:
+    """The discrete hypotheses the marks a hypothesis leaves out suggest, at most
+    ``twin_hypotheses``: for a mark left out (misplaced or hidden) whose twin is marked too, the
+    pair's names exchanged; whose twin is not marked, the mark read under the twin's name.
+    Marks on the symmetry plane have no twin."""
+    from carbody.fit.keypoints_io import keypoint_slots
+
+    names = hypothesis.marks.names
+    named = keypoint_slots()
+    out: list[dict[str, str]] = []
+    for name, kept in zip(names, hypothesis.kept):
+        twin = twin_name(name)
+        if kept or twin not in named:
+            continue
+        change = {name: twin, twin: name} if twin in names else {name: twin}
+        if change not in out:
+            out.append(change)
+        if len(out) == policy.twin_hypotheses:
+            break
+    return out
+
+
+def twin_exchanges(scorer, hypothesis, refine):
+    """The hypothesis, or one with a twin exchange (:func:`twin_renames`) that scores better by
+    ``twin_margin_nats``; each tried at the hypothesis' view and refined there
+    (``refine(scorer, hypothesis)``: a short local search, as the names can move the view).
+
+    Returns:
+        (the hypothesis kept, the scorer of its marks).
+    """
+    best, best_scorer = hypothesis, scorer
+    for change in twin_renames(hypothesis, scorer.policy):
+        other = scorer.with_marks(hypothesis.marks.renamed(change))
+        trial = other.hypothesis(hypothesis.view)
+        if trial is None:
+            continue
+        trial = refine(other, trial) or trial
+        trial.renamed = change
+        if trial.score < best.score - scorer.policy.twin_margin_nats:
+            best, best_scorer = trial, other
+    return best, best_scorer

@@ -1,0 +1,179 @@
+"""One view search: every azimuth and elevation scored, the best few refined, the best kept.
+
+The scan puts a camera at every ``scan_azimuth_step_deg`` round the car (both sides: the 24
+classes) at each of ``scan_elevations_deg`` (and, when the camera's distance is to be found, both
+orthographic and at 2.5 wheelbases), and scores each by :class:`~carbody.fit.hypothesis.Scorer`
+with its cheap solve (the library's span alone, one Newton round, at most ``scan_rejections``
+marks left out). The ``refined_candidates`` best, ``candidate_separation_deg`` apart, are
+refined (Nelder–Mead over azimuth, elevation and a pinhole's perspective, the cheap solve), and
+the best of those polished with the full solve. A view told, or the classifier's, enters only as
+the prior in the score, so a view told 90° or 180° off, the car's other side or end, and a view
+far from a start all come out of the same search. What the scan costs does not depend on the
+marks: every fit costs about the same.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from carbody.camera import View
+from carbody.fit.hypothesis import Hypothesis, Scorer
+from carbody.view.labels import angular_difference
+
+#: A pinhole view's perspective is searched as ρ = PERSPECTIVE_LENGTH / distance (distance in the
+#: fit's normalised units: ρ is wheelbases per distance), within 0 (orthographic) … 1 (a camera a
+#: wheelbase from the car's centre).
+PERSPECTIVE_LENGTH = 1000.0
+PERSPECTIVE_RANGE = (0.0, 1.0)
+
+#: Below this ρ (a camera over 1000 wheelbases, ~3 km, away) the view is orthographic.
+PERSPECTIVE_FAR = 1e-3
+
+#: Initial simplex steps of the local search: degrees of azimuth and elevation; ρ.
+SIMPLEX_STEPS = (2.0, 2.0, 0.1)
+
+#: The local search stays this far (degrees) in azimuth from where it starts: past the scan's
+#: neighbouring azimuths another candidate's valley begins.
+LOCAL_AZIMUTH_RANGE_DEG = 25.0
+
+
+def perspective_of(view: View) -> float:
+    """ρ of a view (0: orthographic)."""
+    return 0.0 if view.distance is None else PERSPECTIVE_LENGTH / view.distance
+
+
+def with_perspective(view: View, rho: float, aim: tuple[float, float, float]) -> View:
+    """The view with perspective ρ (orthographic below ``PERSPECTIVE_FAR``), aimed at ``aim``."""
+    far = rho <= PERSPECTIVE_FAR
+    return View(view.azimuth % 360.0, view.elevation, view.roll, None if far else PERSPECTIVE_LENGTH / rho,
+                (0.0, 0.0, 0.0) if far else aim)
+
+
+def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool) -> tuple[Hypothesis, list[Hypothesis]]:
+    """The best hypothesis round the car, and the scan's hypotheses best first.
+
+    Args:
+        cameras: the scan's cameras at azimuth 0 (orthographic, and pinholes at the distances
+            to start from: their distance and aim), turned round the car and raised to each
+            scan elevation here.
+        find_perspective: refine the pinholes' perspective too (the distance is to be found).
+    """
+    policy = scorer.policy
+    scanned = []
+    for camera in cameras:
+        for elevation in policy.scan_elevations_deg:
+            for azimuth in np.arange(0.0, 360.0, policy.scan_azimuth_step_deg):
+                view = View(float(azimuth), elevation, camera.roll, camera.distance, camera.aim)
+                hypothesis = scorer.hypothesis(view, cheap=True, rejections=policy.scan_rejections)
+                if hypothesis is not None:
+                    scanned.append(hypothesis)
+    if not scanned:
+        from carbody.errors import FitError
+
+        raise FitError("no view of any library car explains these keypoints (check their names and places)")
+    scanned.sort(key=lambda h: h.score)
+    free = ("azimuth", "elevation") + (("perspective",) if find_perspective else ())
+    candidates = distinct(scanned, policy.refined_candidates, policy.candidate_separation_deg)
+    coarse = [refine(scorer, c, free, cheap=True, evaluations=policy.coarse_evaluations, tolerance=0.5)
+              for c in candidates]
+    k = int(np.argmin([h.score for h in coarse]))
+    # polished from where the cheap solve settled and from the scan's view: the full solve's
+    # evidence has its own small valleys, and the cheap one's optimum can sit in another
+    polished = [refine(scorer, start, free, cheap=False, evaluations=policy.polish_evaluations,
+                       tolerance=policy.polish_tolerance_deg) for start in (coarse[k], candidates[k])]
+    return min(polished, key=lambda h: h.score), scanned
+
+
+def distinct(hypotheses: list[Hypothesis], count: int, separation_deg: float) -> list[Hypothesis]:
+    """The first ``count`` hypotheses (best first) each ``separation_deg`` from those before it
+    in azimuth or elevation."""
+    chosen: list[Hypothesis] = []
+    for h in hypotheses:
+        if all(angular_difference(h.view.azimuth, c.view.azimuth) > separation_deg
+               or abs(h.view.elevation - c.view.elevation) > separation_deg for c in chosen):
+            chosen.append(h)
+            if len(chosen) == count:
+                break
+    return chosen
+
+
+def refine(scorer: Scorer, start: Hypothesis, free: tuple[str, ...], cheap: bool, evaluations: int,
+           tolerance: float) -> Hypothesis:
+    """The best hypothesis near ``start``: Nelder–Mead over the ``free`` angles ("azimuth",
+    "elevation", "perspective") with the marks ``start`` explains (a mark the view stops seeing
+    is left out and charged), then scored afresh there, misplaced marks looked for again; the
+    better of that and ``start`` scored alike."""
+    from scipy.optimize import minimize
+
+    from carbody.errors import AngleError, FitError
+
+    policy = scorer.policy
+    view0 = start.view
+    aim = view0.aim
+    x0 = np.array([view0.azimuth, view0.elevation, perspective_of(view0)])
+    mask = np.array([n in free for n in ("azimuth", "elevation", "perspective")])
+    lo = np.array([x0[0] - LOCAL_AZIMUTH_RANGE_DEG, policy.elevation_range_deg[0], PERSPECTIVE_RANGE[0]])
+    hi = np.array([x0[0] + LOCAL_AZIMUTH_RANGE_DEG, policy.elevation_range_deg[1], PERSPECTIVE_RANGE[1]])
+
+    def view_at(x: np.ndarray) -> View:
+        y = x0.copy()
+        y[mask] = x
+        return with_perspective(View(float(y[0]) % 360.0, float(y[1]), view0.roll), float(y[2]), aim)
+
+    def objective(x: np.ndarray) -> float:
+        y = x0.copy()
+        y[mask] = x
+        if np.any(y < lo) or np.any(y > hi):
+            return np.inf
+        view = view_at(x)
+        kept = start.kept & ~scorer.hidden(view)
+        if kept.sum() < policy.min_kept:
+            return np.inf
+        try:
+            return scorer.score(view, kept, scorer.solve(view, kept, cheap))[0]
+        except (FitError, AngleError):
+            return np.inf
+
+    if mask.any():
+        x = x0[mask]
+        steps = np.array(SIMPLEX_STEPS)[mask]
+        simplex = np.vstack([x] + [x + steps[i] * np.eye(len(x))[i] for i in range(len(x))])
+        found = minimize(objective, x, method="Nelder-Mead",
+                         options={"initial_simplex": simplex, "xatol": tolerance, "fatol": 1e-2, "maxfev": evaluations})
+        refined = scorer.hypothesis(view_at(found.x), cheap=cheap)
+    else:
+        refined = None
+    again = start if cheap else scorer.hypothesis(start.view, cheap=False)
+    options = [h for h in (refined, again) if h is not None]
+    return min(options, key=lambda h: h.score) if options else start
+
+
+#: Step (degrees) of the finite differences that measure how sharply the evidence pins a view angle.
+VIEW_STEP_DEG = 0.5
+
+#: Largest standard deviation (degrees) a view angle is given where the evidence is flat.
+MAX_VIEW_SD_DEG = 10.0
+
+
+def view_spread(scorer: Scorer, hypothesis: Hypothesis, angles: tuple[str, ...]) -> np.ndarray:
+    """(len(angles), 105): the keypoints' move (normalised units) per one standard deviation of
+    each view angle found — a Laplace approximation: the evidence's curvature at the view (the
+    shape solved afresh at every view, so its trade with the angle is in it) gives the angle's
+    standard deviation at the prior's noise level λ, rescaled to the marks' own (their residual
+    variance); central differences of the solved shape give its slope. Near level views the
+    marks hardly tell azimuth from width, and this says so."""
+    from dataclasses import replace
+
+    from carbody.topology import load_topology
+
+    idx = load_topology().keypoint_point_indices
+    sol, view, kept = hypothesis.solution, hypothesis.view, hypothesis.kept
+    noise_ratio = sol.cost / (sol.posterior.lam * max(2 * int(kept.sum()) - 2, 1))
+    rows = []
+    for angle in angles:
+        at = getattr(view, angle)
+        plus, minus = (scorer.solve(replace(view, **{angle: at + sign * VIEW_STEP_DEG}), kept) for sign in (1, -1))
+        curvature = (plus.evidence + minus.evidence - 2.0 * sol.evidence) / VIEW_STEP_DEG ** 2
+        sd = MAX_VIEW_SD_DEG if not curvature > 0 else min(np.sqrt(noise_ratio / curvature), MAX_VIEW_SD_DEG)
+        slope = (plus.shape.reshape(-1, 3)[idx] - minus.shape.reshape(-1, 3)[idx]).ravel() / (2 * VIEW_STEP_DEG)
+        rows.append(slope * sd)
+    return np.array(rows)

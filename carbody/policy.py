@@ -1,0 +1,160 @@
+"""The fit's thresholds in one place: what each one protects against.
+
+:class:`FitPolicy` is a frozen dataclass; :class:`carbody.fit.FitOptions` carries one (the
+default :data:`FIT_POLICY`), so a test or a benchmark changes a threshold by passing another
+policy, never by patching a module. Units: degrees, nats (−log likelihood), fractions of the
+marks' RMS spread about their centre (``keypoint_spread``: ≈ 300 px for a car 900 px wide).
+:mod:`carbody.tolerances` holds the geometric tolerances and units; this file holds decisions.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class FitPolicy:
+    """Thresholds of the fit (:func:`carbody.fit.fit_wireframe`), each with what it protects
+    against."""
+
+    # ---- the view search (carbody.fit.search)
+
+    #: Azimuths scanned all round the car, this far apart: the 24 classes of both sides. Finer
+    #: costs a solve per view per elevation; the local refinement closes the gap.
+    scan_azimuth_step_deg: float = 15.0
+
+    #: Elevations scanned at every azimuth: photos are taken from a person's height (0–20°),
+    #: some from above. Near a side view a wrong elevation passes for a wrong azimuth, so one
+    #: elevation alone can settle in the wrong valley.
+    scan_elevations_deg: tuple[float, ...] = (-10.0, 0.0, 10.0, 20.0, 35.0)
+
+    #: Perspectives scanned when the camera's distance is to be found: orthographic and
+    #: 2.5 wheelbases (≈ 7 m, a typical photo), as wheelbases per distance (ρ = 1000 / D).
+    #: A photo from afar looks orthographic, and the two hypotheses' best angles can differ.
+    scan_perspectives: tuple[float, ...] = (0.0, 0.4)
+
+    #: The best this many hypotheses of the scan, this far apart in azimuth or elevation, are
+    #: refined: the evidence is not convex round the car (the other end, the mirror side, a
+    #: level view's width/azimuth trade) and the scan's cheap solve may rank close ones wrong.
+    refined_candidates: int = 3
+    candidate_separation_deg: float = 20.0
+
+    #: Each candidate's local refinement: at most this many cheap solves, then the best one
+    #: polished with the full shape model to this many solves and this precision (degrees).
+    coarse_evaluations: int = 40
+    polish_evaluations: int = 180
+    polish_tolerance_deg: float = 0.1
+
+    #: The refined elevation stays in this range (degrees): beyond it no photo of a car is taken,
+    #: and a car seen steeply from above can be bent to fit most marks.
+    elevation_range_deg: tuple[float, float] = (-20.0, 60.0)
+
+    #: A told azimuth counts as a von Mises prior of this standard deviation (degrees): strong
+    #: enough to choose between views the marks fit alike, far too weak to keep a view the
+    #: marks contradict (a view 180° off costs ≈ 7 nats; a wrong end thousands).
+    view_prior_sd_deg: float = 30.0
+
+    #: The elevation prior: a Gaussian of this standard deviation (degrees) around the told
+    #: elevation (0° unless told): photos are taken from near a person's height.
+    elevation_prior_sd_deg: float = 20.0
+
+    #: A classifier's probabilities are floored at this share of a uniform prior before they
+    #: count: a confident but wrong classifier must not veto the view the marks fit.
+    classifier_floor: float = 0.05
+
+    # ---- what the marks' names say (carbody.fit.visibility.FacingTable)
+
+    #: A marked keypoint counts as hidden from a view only when no region at it faces a camera
+    #: within this many degrees of that view: the library's mean car is not the photo's car,
+    #: and marks on the silhouette are clicked from views where they only just show.
+    visibility_margin_deg: float = 15.0
+
+    # ---- the robust estimate of the marks (carbody.fit.robust)
+
+    #: Prior probability that a mark is misplaced (a click on the wrong feature, a name slipped):
+    #: a mark is left out when its density under the fit of the others is below this share of
+    #: a click anywhere on the photo (for 2 px marks ≈ 5 standard deviations off).
+    outlier_probability: float = 0.05
+
+    #: … and only when the others predict it further than this fraction of the marks' spread
+    #: (≈ 9 px for a car 900 px wide): a car unlike every template misses its genuine marks by
+    #: a few pixels, many of its own noise levels, and those marks carry its shape.
+    outlier_floor_spread: float = 0.03
+
+    #: … and only when its own residual stands out, this many times the marks' median: a point
+    #: the car can bend to (the library and its local field reach it) is a feature of this car —
+    #: a pickup's bed corner among saloons — not a misplaced click, which no car follows.
+    outlier_residual_ratio: float = 4.0
+
+    #: At most this fraction of the marks is left out, and at least ``min_kept`` stay: the
+    #: estimate explains the marks by the car, not the car by a handful of them.
+    max_rejected_fraction: float = 0.25
+    min_kept: int = 6
+
+    #: The scan's hypotheses leave out at most this many marks (a whole solve each): enough that
+    #: one wild mark does not push the right view out of the best few.
+    scan_rejections: int = 1
+
+    #: Discrete hypotheses on the names of marks left out (a left/right pair exchanged, a mark
+    #: clicked under its twin's name), at most this many, each kept when it explains the marks
+    #: better by this many nats: a name is changed only when the marks say so clearly.
+    twin_hypotheses: int = 4
+    twin_margin_nats: float = 10.0
+
+    #: A kept mark is named suspect when its residual exceeds this many times the median and
+    #: this fraction of the marks' spread (a mark the car cannot follow, not left out).
+    suspect_ratio: float = 4.0
+    suspect_spread: float = 0.05
+
+    #: A mark left out "looks like" another keypoint when the fitted car puts that one within
+    #: this fraction of the marks' spread of it: a click meant for another name.
+    looks_like_spread: float = 0.02
+
+    # ---- how well the fit explains the marks (carbody.fit.diagnostics)
+
+    #: −log evidence per marked coordinate above which no car near the view found fits the marks
+    #: (``fits_poorly``): set between the leave-one-out cars' fits at their own views (≤ 6.1 with
+    #: 5 px of noise) and at their other end (≥ 34.9); BENCHMARKS.md.
+    poor_fit_evidence: float = 10.0
+
+    #: The fitted car misses the marks (``misses_marks``) when its mean residual exceeds this
+    #: fraction of their spread, whatever the method: a car no better than a guess.
+    misses_marks_spread: float = 0.05
+
+    # ---- the camera (carbody.fit.fit_camera)
+
+    #: Told the orthographic camera, a camera close by "fits far better" when its mean residual
+    #: is at most this fraction of the orthographic one, or its −log evidence per coordinate is
+    #: lower by more than ``closer_camera_evidence`` (a photo from a few metres fitted as if from
+    #: afar comes out distorted; BENCHMARKS.md: at most 0.32 on pictures from afar).
+    closer_camera_gain: float = 0.6
+    closer_camera_evidence: float = 1.0
+
+    #: Refits with the camera turned toward an off-centre car (each from the previous one's
+    #: aim), until the direction to the car's centre moves less than this (degrees: left over,
+    #: such a tilt draws one end of a car spanning 30° of the photo ≈ 0.2 % larger).
+    turn_passes: int = 4
+    turn_tolerance_deg: float = 0.25
+
+    #: With the focal length unknown and the distance found, the turn tries focal lengths up to
+    #: this factor either side of the settled turn's, on a log grid of this many, then to this
+    #: precision in log f: an oblique image plane passes for a nearer camera, whose own focal
+    #: length then turns the camera wrongly.
+    focal_search_range: float = 3.0
+    focal_search_grid: int = 7
+    focal_search_tolerance: float = 0.05
+
+    #: A focal length under this fraction of the photo's diagonal is no camera's (10 mm in 35 mm
+    #: terms, wider than the widest phone lens): a fit bent to the wrong end drifts there.
+    min_focal_diagonal: float = 10.0 / 43.3
+
+    #: A car's size read from a told camera distance and the fit's perspective is taken when it
+    #: lies within this factor of the library's wheelbases (beyond: too little perspective); else
+    #: the told distance is read at the fitted car's own wheelbase, in at most
+    #: ``distance_passes`` fits until the two agree to ``distance_agreement``.
+    perspective_size_range: float = 1.5
+    distance_passes: int = 3
+    distance_agreement: float = 0.005
+
+
+#: The policy every fit uses unless told another.
+FIT_POLICY = FitPolicy()
