@@ -361,8 +361,11 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
 
     start = stage("surfaces")
     fallback = None
+    from threadpoolctl import threadpool_limits
+
     try:
-        body = build_body(fit.wireframe)
+        with threadpool_limits(1):  # small dense algebra: more threads only oversubscribe the cores
+            body = build_body(fit.wireframe)
     except SurfaceError as exc:
         # The stiffer fits take the marks the fit kept, as it named them (a mark it left out as
         # misplaced bends a stiffer car further still).

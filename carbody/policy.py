@@ -86,7 +86,10 @@ class FitPolicy:
     outlier_residual_ratio: float = 4.0
 
     #: At most this fraction of the marks is left out, and at least ``min_kept`` stay: the
-    #: estimate explains the marks by the car, not the car by a handful of them.
+    #: estimate explains the marks by the car, not the car by a handful of them. A view that
+    #: cannot see more than this fraction of them is not the photo's (the names say so): a
+    #: close photo fitted as if from afar misses every mark by pixels, and a view seeing only a
+    #: few of them would explain those few better.
     max_rejected_fraction: float = 0.25
     min_kept: int = 6
 

@@ -11,12 +11,15 @@ import numpy as np
 
 from carbody.camera import View
 from carbody.fit.hypothesis import Hypothesis, Scorer
-from carbody.fit.search import PERSPECTIVE_LENGTH, refine
+from carbody.fit.search import PERSPECTIVE_LENGTH, search_views
+from carbody.tolerances import NORMALISED_WHEELBASE
 
 
 def closer_camera(scorer: Scorer, hypothesis: Hypothesis, aim: tuple[float, float, float]) -> dict | None:
-    """Fit an orthographic hypothesis' marks with the camera's distance found, from its view: that
-    camera's distance (normalised units; None: far away), both mean residuals (before the
+    """Fit an orthographic hypothesis' marks with the camera's distance found (the search as
+    ``camera_distance_mm="auto"`` runs it: an orthographic fit of a close photo can settle
+    degrees off, so not from its view): that camera's distance (normalised units; None: far
+    away), both mean residuals (before the
     deformation), how much likelier it is (−log evidence per coordinate; None for the paper's
     solve) and whether it fits far better (``closer_camera_gain``, ``closer_camera_evidence``).
     A photo from a few metres shows the car's near end larger than its far end, which no
@@ -24,20 +27,21 @@ def closer_camera(scorer: Scorer, hypothesis: Hypothesis, aim: tuple[float, floa
     view runs astray to bend a car onto them (BENCHMARKS.md: ``--orthographic-check``).
 
     Returns:
-        the check as a dict (distance in normalised units under ``distance``), or None when no
-        car fits the marks with a camera close by.
+        the check as a dict (``camera_distance_mm`` at that fit's wheelbase: the told one, else
+        its own mix's), or None when no car fits the marks with a camera close by.
     """
+    from carbody.fit.fit_camera import mix_wheelbase_mm
+
+    from carbody.errors import FitError
+
     policy = scorer.policy
-    view = hypothesis.view
-    starts = [scorer.hypothesis(View(view.azimuth, view.elevation, view.roll, PERSPECTIVE_LENGTH / rho, aim),
-                                kept=hypothesis.kept)
-              for rho in policy.scan_perspectives if rho > 0]
-    near = [refine(scorer, s, ("azimuth", "elevation", "perspective"), cheap=False,
-                   evaluations=policy.polish_evaluations, tolerance=policy.polish_tolerance_deg)
-            for s in starts if s is not None]
-    if not near:
+    roll = hypothesis.view.roll
+    cameras = [View(0.0, 0.0, roll) if rho == 0 else View(0.0, 0.0, roll, PERSPECTIVE_LENGTH / rho, aim)
+               for rho in policy.scan_perspectives]
+    try:
+        near_fit = search_views(scorer, cameras, find_perspective=True)[0]
+    except FitError:
         return None
-    near_fit = min(near, key=lambda h: h.score)
     far, close = float(np.mean(hypothesis.solution.residual_px)), float(np.mean(near_fit.solution.residual_px))
     gain = None
     if hypothesis.solution.evidence is not None and near_fit.solution.evidence is not None:
@@ -45,5 +49,7 @@ def closer_camera(scorer: Scorer, hypothesis: Hypothesis, aim: tuple[float, floa
         gain = float((hypothesis.score - hypothesis.prior) - (near_fit.score - near_fit.prior)) / (2 * int(hypothesis.kept.sum()))
     closer = near_fit.view.distance is not None and (
         close < policy.closer_camera_gain * far or (gain is not None and gain > policy.closer_camera_evidence))
-    return {"distance": near_fit.view.distance, "residual_px_mean": close, "orthographic_residual_px_mean": far,
+    wheelbase = scorer.wheelbase_mm if scorer.wheelbase_mm is not None else mix_wheelbase_mm(near_fit, scorer.library)
+    distance = None if near_fit.view.distance is None else float(near_fit.view.distance * wheelbase / NORMALISED_WHEELBASE)
+    return {"camera_distance_mm": distance, "residual_px_mean": close, "orthographic_residual_px_mean": far,
             "evidence_gain_per_coordinate": gain, "closer_camera": bool(closer)}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from carbody.fit.options import METHODS
+from carbody.fit.solve import METHODS
 
 
 def add_marks_argument(p: argparse.ArgumentParser) -> None:

@@ -50,9 +50,10 @@ class FitDiagnostics:
         evidence_per_coordinate: −log evidence per marked coordinate (None: the paper's solve).
         fits_poorly: above ``poor_fit_evidence``: no car near the view found explains the marks.
         misses_marks: the car's mean residual exceeds ``misses_marks_spread`` of the marks' spread.
-        view_search: what the search saw: the prior, the number of hypotheses scored, the best
-            few refined ({azimuth_deg, elevation_deg, camera_distance_mm, score_nats}) and the
-            margin (nats) of the best over the next distinct view; None for a view kept as given.
+        view_search: what the search saw: the prior, the views scanned and how many of them see
+            the marks (``hypotheses``), the best few distinct ones scanned ({azimuth_deg,
+            elevation_deg, perspective, score_nats}), the margin (nats) of the best over the next
+            and the score of the view found; None for a view kept as given.
         closer_camera: told the orthographic camera and asked to check, the fit with the distance
             found (its distance, both residuals, the evidence gained, and ``closer_camera``:
             whether it fits far better); else None.

@@ -181,14 +181,15 @@ class Scorer:
                    rejections: int | None = None) -> Hypothesis | None:
         """The hypothesis ``view`` with the marks it can see (of ``kept``, default all), those
         the others say are misplaced left out (up to ``rejections``; default the policy's most,
-        :func:`carbody.fit.robust.leave_out_misplaced`); None when too few marks remain or no
-        car fits them there."""
+        :func:`carbody.fit.robust.leave_out_misplaced`); None when the view cannot see more than
+        ``max_rejected_fraction`` of the marks (their names say it is not the photo's), too few
+        remain, or no car fits them there."""
         from carbody.fit.robust import leave_out_misplaced, most_rejected
 
         hidden = self.hidden(view)
         kept = ~hidden if kept is None else (np.asarray(kept, dtype=bool) & ~hidden)
-        if kept.sum() < self.policy.min_kept:
-            return None
+        if kept.sum() < self.policy.min_kept or hidden.sum() > self.policy.max_rejected_fraction * len(hidden):
+            return None  # the names say the photo is not taken from here
         try:
             sol = self.solve(view, kept, cheap)
             if self.options.robust_marks:

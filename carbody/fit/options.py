@@ -14,10 +14,8 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from carbody.errors import FitError
+from carbody.fit.solve import DEFAULT_PRIOR_WEIGHT, METHODS
 from carbody.policy import FIT_POLICY, FitPolicy
-
-#: Fit methods, default first (:mod:`carbody.fit.solve`).
-METHODS = ("mixture", "gauss", "paper")
 
 #: The wheelbases (mm) the fit accepts when told.
 MIN_WHEELBASE_MM, MAX_WHEELBASE_MM = 500.0, 10_000.0
@@ -55,7 +53,7 @@ class FitOptions:
     """
 
     method: str = METHODS[0]
-    prior_weight: float = 1e-4
+    prior_weight: float = DEFAULT_PRIOR_WEIGHT
     refine: bool = True
     deform: bool | None = None
     joint_field: bool = True

@@ -125,8 +125,9 @@ def refine(scorer: Scorer, start: Hypothesis, free: tuple[str, ...], cheap: bool
         if np.any(y < lo) or np.any(y > hi):
             return np.inf
         view = view_at(x)
-        kept = start.kept & ~scorer.hidden(view)
-        if kept.sum() < policy.min_kept:
+        hidden = scorer.hidden(view)
+        kept = start.kept & ~hidden
+        if kept.sum() < policy.min_kept or hidden.sum() > policy.max_rejected_fraction * len(hidden):
             return np.inf
         try:
             return scorer.score(view, kept, scorer.solve(view, kept, cheap))[0]

@@ -95,8 +95,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
                 lambda distance, h: polish(scorer, scorer.hypothesis(replace(h.view, distance=distance)) or h,
                                            free=("azimuth", "elevation")))
         photo_uv = hypothesis.marks.uv
+        # (a told distance stays as the car was sized by it: the turned refits keep it)
         turn = turn_toward_car(hypothesis, photo_uv, plan, options.policy,
-                               _turned_refit(scorer, hypothesis, search_plan, options, polish))
+                               _turned_refit(scorer, hypothesis, plan, options, _polisher(options, plan)))
         if turn.to_photo is not None:
             scorer = scorer.with_marks(turn.hypothesis.marks)
         wheelbase, source = (wheelbase_mm, "told") if wheelbase_mm is not None else \
@@ -114,9 +115,6 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             from carbody.fit.solve import car_centre
 
             closer = closer_camera(scorer, turn.hypothesis, car_centre(library_mean(library)))
-            if closer is not None:
-                distance = closer.pop("distance")
-                closer["camera_distance_mm"] = None if distance is None else distance * result.mm_per_unit
         result.diagnostics = diagnose(result, scorer, turn.hypothesis, options.policy, searched, closer, photo_uv)
     return result
 
@@ -144,7 +142,7 @@ def _located(scorer: Scorer, cameras: list[View], plan: CameraPlan, prior: ViewP
     kept as given (its distance still found when asked)."""
     if options.refine:
         best, scanned = search_views(scorer, cameras, plan.finds_perspective)
-        return best, _search_summary(scanned, best, prior, scorer)
+        return best, _search_summary(scanned, best, prior, scorer, len(cameras))
     start = prior.start
     kept = [scorer.hypothesis(View(start.azimuth, start.elevation, start.roll, c.distance, c.aim)) for c in cameras]
     kept = [h for h in kept if h is not None]
@@ -186,17 +184,20 @@ def _turned_refit(scorer: Scorer, hypothesis: Hypothesis, plan: CameraPlan, opti
     return refit
 
 
-def _search_summary(scanned: list[Hypothesis], best: Hypothesis, prior: ViewPrior, scorer: Scorer) -> dict:
-    """What the view search saw, for the diagnostics: the prior, how many hypotheses, the best few
-    distinct ones and the margin of the best over the next."""
-    from carbody.fit.search import distinct
+def _search_summary(scanned: list[Hypothesis], best: Hypothesis, prior: ViewPrior, scorer: Scorer,
+                    cameras: int) -> dict:
+    """What the view search saw, for the diagnostics: the prior, how many views it scanned and
+    how many could see the marks (hypotheses), the best few distinct ones and the margin of the
+    best over the next."""
+    from carbody.fit.search import PERSPECTIVE_LENGTH, distinct
 
     policy = scorer.policy
+    views = cameras * len(policy.scan_elevations_deg) * int(round(360.0 / policy.scan_azimuth_step_deg))
     top = distinct(scanned, policy.refined_candidates, policy.candidate_separation_deg)
     rows = [{"azimuth_deg": float(h.view.azimuth), "elevation_deg": float(h.view.elevation),
-             "perspective": 0.0 if h.view.distance is None else 1000.0 / h.view.distance,
+             "perspective": 0.0 if h.view.distance is None else PERSPECTIVE_LENGTH / h.view.distance,
              "score_nats": float(h.score)} for h in top]
-    return {"prior": prior.as_dict(), "hypotheses": len(scanned), "best_scanned": rows,
+    return {"prior": prior.as_dict(), "views_scanned": views, "hypotheses": len(scanned), "best_scanned": rows,
             "margin_nats": float(top[1].score - top[0].score) if len(top) > 1 else None,
             "score_nats": float(best.score)}
 

@@ -225,9 +225,9 @@ class MixSolution:
         posterior: how far the shape is pinned (``"gauss"``/``"mixture"``): a
             :class:`ShapePosterior`, from which :func:`keypoint_covariance` gives each
             keypoint's uncertainty.
-        evidence_px: ``evidence`` as the density of the marks' pixels (−log, nats; the
-            normalising terms of the λ noise and the marks' spread ρ added), so fits of
-            different sets of marks compare (:mod:`carbody.fit.robust`).
+        evidence_px: −log density of the marks' pixels (nats): ``evidence`` with its normalising
+            terms (λ's noise and the marks' spread ρ), so fits of different sets of marks
+            compare (:mod:`carbody.fit.hypothesis`).
         leverage: (k, 2, 2) the hat matrix's diagonal blocks: how much of each mark's (u, v)
             its own fit follows (the leave-one-out residual is (I − leverage)⁻¹ · residual).
         rho: the marks' RMS spread about their centre per coordinate, px (the solve's unit).
@@ -438,7 +438,8 @@ def _image_fit(M: np.ndarray, keypoints: np.ndarray, z: np.ndarray, scale: float
 
 def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarray, view: View,
                   shapes: np.ndarray | None = None, warm_support: np.ndarray | None = None,
-                  rounds: int = PERSPECTIVE_ITERATIONS) -> MixSolution:
+                  rounds: int = PERSPECTIVE_ITERATIONS, full_set_max: int = FULL_SET_MAX,
+                  working_set_growth: int = WORKING_SET_GROWTH) -> MixSolution:
     """The paper's constrained solve (ΣH = 1, 0 ≤ H ≤ 1) with the image's scale and offset.
 
     Args:
@@ -451,7 +452,9 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
             is None).
         warm_support: models to start the active set from (a previous solution's support).
         rounds: a pinhole view's Newton rounds (1: linearised at the library's mean car only,
-            the refinement's coarse scan).
+            the search's cheap solve).
+        full_set_max, working_set_growth: libraries up to ``full_set_max`` models are solved in
+            one active-set run; larger ones on a working set grown by ``working_set_growth``.
     Raises:
         FitError: keypoints no library mix reproduces at a positive image scale.
     """
@@ -461,7 +464,8 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
     rounds = 1 if view.distance is None else rounds
     for round_ in range(rounds):
         M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, kp)
-        G = _solve_working_set(basis, Mc / basis.size, cc / basis.size, b, warm_support, slots, M)
+        G = _solve_working_set(basis, Mc / basis.size, cc / basis.size, b, warm_support, slots, M,
+                               full_set_max, working_set_growth)
         total = G.sum()
         if not total > 0:
             raise FitError("no library mix reproduces these keypoints at a positive image scale "
@@ -666,7 +670,8 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
 
 
 def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, const: np.ndarray, b: np.ndarray,
-                       warm: np.ndarray | None, slots: list[KeypointSlot], M: np.ndarray) -> np.ndarray:
+                       warm: np.ndarray | None, slots: list[KeypointSlot], M: np.ndarray,
+                       full_set_max: int = FULL_SET_MAX, growth: int = WORKING_SET_GROWTH) -> np.ndarray:
     """NNLS over all models of ``basis`` with A = rows·X + const·1ᵀ (X the (105, N) keypoint
     rows), A never built whole for a large library.
 
@@ -695,7 +700,7 @@ def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, const: np.ndarray
         A += const[:, None]
         return A
 
-    if n <= FULL_SET_MAX:
+    if n <= full_set_max:
         return nnls_active_set(columns(None), b, passive=warm)
 
     def gradient(r: np.ndarray) -> np.ndarray:
@@ -703,7 +708,7 @@ def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, const: np.ndarray
         return ((rows.T @ r).astype(flat.dtype) @ flat).astype(np.float64) + const @ r
 
     g0 = gradient(-b)
-    seed = np.argsort(g0)[:WORKING_SET_GROWTH]
+    seed = np.argsort(g0)[:growth]
     stride = np.arange(0, n, max(1, n // STRIDE_SAMPLE))
     W = np.unique(np.concatenate([seed, stride] + ([np.asarray(warm)] if warm is not None else [])))
     G = np.zeros(n)
@@ -718,6 +723,6 @@ def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, const: np.ndarray
         viol = np.flatnonzero(g < -tol)
         if not len(viol):
             break
-        add = viol[np.argsort(g[viol])[:WORKING_SET_GROWTH]]
+        add = viol[np.argsort(g[viol])[:growth]]
         W = np.unique(np.concatenate([W, add]))
     return G

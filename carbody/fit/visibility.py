@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from carbody.camera import View, camera_direction, degrees_from_axis, mirror_view, perspective_factors, project
+from carbody.camera import View, camera_direction, perspective_factors, project
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
 from carbody.topology import Topology, load_topology
 
@@ -28,20 +28,6 @@ OCCLUSION_MARGIN = 0.02
 
 #: Samples per curve for region outlines.
 _SAMPLES = 8
-
-#: The marks say the photo shows the car's other side when at least this many of them …
-SIDE_MIN_HIDDEN = 3
-
-#: … and this fraction are hidden from the view but no more than ``SIDE_RATIO`` as many from
-#: its mirror (θ ↔ 360° − θ) …
-SIDE_FRACTION = 0.25
-SIDE_RATIO = 1 / 3
-
-#: … and its other end (θ ↔ 180° − θ) when the view is this near the front or rear and this
-#: fraction of the marks face away from it (:func:`view_the_marks_say`).
-END_RANGE_DEG = 60.0
-END_FRACTION = 0.15
-
 
 def _region_loops(control_points: np.ndarray, topo: Topology) -> list[np.ndarray]:
     """(n, 3) outline per region of the left half, in loop order."""
@@ -213,41 +199,3 @@ def visible_slots(view: View, control_points: np.ndarray | None = None,
     """:func:`visible_keypoints` as slots."""
     slots = keypoint_slots(topology)
     return [slots[n] for n in visible_keypoints(view, control_points, topology)]
-
-
-def view_the_marks_say(names: list[str], view: View, control_points: np.ndarray | None = None
-                       ) -> tuple[float, str, list[str]] | None:
-    """Whether the names of keypoints marked on a photo say it shows the car from elsewhere than
-    ``view``: from its other side (a mark on the right flank, ``door_front_bottom_right``, cannot
-    be seen from the left; the mirror view θ ↔ 360° − θ) or, near the front or rear, from its
-    other end (the tail's marks from a front three-quarter view; θ ↔ 180° − θ).
-
-    Judged with ``control_points`` (default the library's mean car) and an orthographic camera
-    at the view's elevation. The other side: the marks on no region facing the view, against
-    its mirror's (``SIDE_MIN_HIDDEN``, ``SIDE_FRACTION``, ``SIDE_RATIO``). The other end, within
-    ``END_RANGE_DEG`` of the front or rear: when ``END_FRACTION`` of the marks face away, the
-    marks hidden with occlusion, against the swapped view's. On the leave-one-out templates'
-    own marks (tests) neither says anything at their view or 15° off it.
-
-    Returns:
-        (the azimuth the marks say, ``"side"`` or ``"end"``, the marks hidden from ``view``),
-        or None when the view is not contradicted.
-    """
-    level = View(view.azimuth, view.elevation, view.roll)
-    facing = set(visible_keypoints(level, control_points, occlusion=False))
-    hidden = [n for n in names if n not in facing]
-    if len(hidden) < max(SIDE_MIN_HIDDEN, min(SIDE_FRACTION, END_FRACTION) * len(names)):
-        return None
-    mirror = mirror_view(level)
-    if len(hidden) >= SIDE_FRACTION * len(names):
-        there = set(visible_keypoints(mirror, control_points, occlusion=False))
-        if sum(n not in there for n in names) <= SIDE_RATIO * len(hidden):
-            return mirror.azimuth, "side", hidden
-    if degrees_from_axis(view.azimuth) <= END_RANGE_DEG:
-        swapped = View((180.0 - view.azimuth) % 360.0, view.elevation, view.roll)
-        seen_here = set(visible_keypoints(level, control_points))
-        seen_there = set(visible_keypoints(swapped, control_points))
-        hidden = [n for n in names if n not in seen_here]
-        if sum(n not in seen_there for n in names) <= SIDE_RATIO * len(hidden):
-            return swapped.azimuth, "end", hidden
-    return None
