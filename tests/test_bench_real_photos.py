@@ -10,6 +10,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from tests.conftest import REPO
@@ -22,8 +23,45 @@ DATA = REPO.parent / "shared" / "realphotos"
 #: fit is changing, the instrument must measure whatever comes.
 PHOTOS = ("cps_te24", "cps_te47", "cps_te12")
 
-pytestmark = pytest.mark.skipif(not (DATA / "parts.json").exists(),
+needs_data = pytest.mark.skipif(not (DATA / "parts.json").exists(),
                                 reason=f"no real-photo data at {DATA} (kept outside the repository)")
+
+
+@pytest.fixture(scope="module")
+def bench():
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import bench_real_photos
+
+    return bench_real_photos
+
+
+def test_a_self_crossing_outline_counts_its_two_lobes_once(bench):
+    bow_tie = bench.polygon(np.array([[0, 0], [2, 2], [2, 0], [0, 2]], dtype=float))
+    assert bow_tie.is_valid and bow_tie.area == pytest.approx(2.0)
+
+
+def test_each_annotated_wheel_takes_its_own_projected_centre(bench):
+    """Two wheels both nearest one centre: the one-to-one match gives the second its own."""
+    annotated = np.array([[0.0, 0.0], [3.0, 0.0]])
+    projected = np.array([[1.0, 0.0], [10.0, 0.0], [-20.0, 0.0], [-30.0, 0.0]])
+    assert sorted((i, j) for i, j, _ in bench.wheel_matches(annotated, projected)) == [(0, 0), (1, 1)]
+
+
+def test_a_region_of_a_template_seen_from_the_front_is_the_union_of_its_halves(bench, templates):
+    """The windshield's left loop and its mirror, projected, make one symmetric outline whose
+    width is the template's windshield base (a_pillar_base on both sides)."""
+    from carbody.fit.report import project_with_camera
+
+    wireframe = templates[0][1]
+    cp = wireframe.control_points
+    camera = {"azimuth_deg": 0.0, "elevation_deg": 0.0, "roll_deg": 0.0, "distance_mm": None,
+              "aim_mm": [0.0, 0.0, 0.0], "scale_px_per_mm": 0.1, "offset_px": [500.0, 500.0], "to_photo": None}
+    shield = bench.projected_region(camera, cp, "windshield")
+    assert shield.geom_type == "Polygon"
+    u = project_with_camera(camera, np.array([wireframe.keypoints()["a_pillar_base"]]))[0, 0]
+    lo, _, hi, _ = shield.bounds
+    assert hi - lo == pytest.approx(2 * abs(u - 500.0), rel=0.05)
+    assert (lo + hi) / 2 == pytest.approx(500.0, abs=0.5)
 
 
 @pytest.fixture(scope="module")
@@ -37,6 +75,7 @@ def bench_run(tmp_path_factory):
     return out, proc.stdout, json.loads((out / "rows.json").read_text())
 
 
+@needs_data
 def test_every_photo_has_a_row_with_an_allowed_outcome(bench_run):
     _, stdout, data = bench_run
     assert [r["photo"] for r in data["rows"]] == list(PHOTOS)
@@ -51,6 +90,7 @@ def test_every_photo_has_a_row_with_an_allowed_outcome(bench_run):
     assert data["summary"]["photos"] == 3 and sum(data["summary"]["outcomes"].values()) == 3
 
 
+@needs_data
 def test_metrics_are_finite_where_defined(bench_run):
     _, _, data = bench_run
     for r in data["rows"]:
@@ -72,6 +112,7 @@ def test_metrics_are_finite_where_defined(bench_run):
         assert r["camera_check_px"] < 0.05
 
 
+@needs_data
 def test_the_contact_sheet_is_written_into_the_output_folder(bench_run):
     import cv2
 
