@@ -172,12 +172,13 @@ def select(photos: list[Photo], wanted: list[str] | None) -> list[Photo]:
 
 # --- running ---------------------------------------------------------------------------------
 
-def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S) -> dict:
+def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S, blas_threads: int | None = None) -> dict:
     """Reconstruct one photo in a fresh process, as a user would; returns (and stores beside the
     output folder, ``OUT/<photo>.run.json``) {exit_code, seconds (wall), cpu_seconds (the
-    process's user + system time: what the load of others does not inflate), stderr_tail,
-    load_before, command}. Its stdout and stderr go to ``OUT/<photo>.stdout.txt`` /
-    ``.stderr.txt``."""
+    process's user + system time over its threads), stderr_tail, load_before, command,
+    blas_threads}. Its stdout and stderr go to ``OUT/<photo>.stdout.txt`` / ``.stderr.txt``.
+    ``blas_threads``: the numerical libraries' thread count set for the run (None: left as a
+    user's environment has it)."""
     import threading
 
     folder = out / photo.name
@@ -189,7 +190,7 @@ def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S) -> dict:
     with open(stdout_path, "w") as stdout, open(stderr_path, "w") as stderr:
         start = time.perf_counter()
         proc = subprocess.Popen(cmd, stdout=stdout, stderr=stderr, stdin=subprocess.DEVNULL, text=True,
-                                env={**os.environ}, cwd=REPO)
+                                env={**os.environ, **blas_environment(blas_threads)}, cwd=REPO)
         timer = threading.Timer(timeout_s, proc.kill)
         timer.start()
         # wait4, not Popen.wait: the child's own CPU time, right with several workers
@@ -203,9 +204,17 @@ def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S) -> dict:
         tail.append(f"(timed out after {timeout_s:.0f} s)")
     run = {"photo": photo.name, "exit_code": code, "seconds": seconds,
            "cpu_seconds": usage.ru_utime + usage.ru_stime, "stderr_tail": tail, "load_before": load,
-           "command": " ".join(cmd[1:])}
+           "command": " ".join(cmd[1:]), "blas_threads": blas_threads}
     (out / f"{photo.name}.run.json").write_text(json.dumps(run, indent=1))
     return run
+
+
+def blas_environment(threads: int | None) -> dict[str, str]:
+    """The variables that set numpy's, scipy's and torch's thread pools to ``threads`` ({} for
+    None)."""
+    if threads is None:
+        return {}
+    return {k: str(threads) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
 
 
 def stored_run(photo: Photo, out: Path) -> dict | None:
@@ -511,14 +520,21 @@ def summary_table(s: dict) -> str:
     return "\n".join(lines)
 
 
-def machine_line(load_start: tuple[float, float, float], workers: int, reused: bool) -> str:
+def machine_line(load_start: tuple[float, float, float], workers: int, reused: bool,
+                 blas_threads: int | str | None = None, rows: list[dict] = ()) -> str:
+    """One line: cores, CPU, Python, the load average at start and end, and before the runs
+    themselves (the rows' ``load_before``: with ``--reuse`` the runs were earlier)."""
     load_end = os.getloadavg()
+    before = [r["load_before"] for r in rows if r.get("load_before") is not None]
     cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
                 if line.startswith("model name")), platform.processor()) if Path("/proc/cpuinfo").exists() \
         else platform.processor()
     return (f"machine: {os.cpu_count()} cores ({cpu}), Python {platform.python_version()}; load average "
             f"(1/5/15 min) {'/'.join(f'{v:.2f}' for v in load_start)} at start, "
-            f"{'/'.join(f'{v:.2f}' for v in load_end)} at end; {workers} worker(s)"
+            f"{'/'.join(f'{v:.2f}' for v in load_end)} at end; {workers} worker(s); BLAS threads "
+            + ("as the environment has them (a user's)" if blas_threads is None else f"set to {blas_threads}")
+            + (f"; 1-min load average before each run: median {statistics.median(before):.2f}, "
+               f"{min(before):.2f}–{max(before):.2f}" if before else "")
             + ("; times from the stored runs (--reuse)" if reused else ""))
 
 
@@ -649,6 +665,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reuse", action="store_true",
                     help="re-measure the stored outputs and times without re-running (photos never "
                          "run are run)")
+    ap.add_argument("--blas-threads", type=int, default=None, metavar="N",
+                    help="set OPENBLAS/OMP/MKL_NUM_THREADS=N for the reconstructs (default: not set, as a "
+                         "user runs it; on a loaded machine OpenBLAS's own threads make the fit several "
+                         "times slower)")
     ap.add_argument("--timeout", type=float, default=TIMEOUT_S, help="seconds per reconstruct (an error after)")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows and summary as JSON here")
     ap.add_argument("--no-sheet", action="store_true", help="skip the contact sheet")
@@ -664,7 +684,7 @@ def main(argv: list[str] | None = None) -> int:
     def run_one(photo: Photo) -> dict:
         run = stored_run(photo, args.out) if args.reuse else None
         if run is None:
-            run = run_photo(photo, args.out, args.timeout)
+            run = run_photo(photo, args.out, args.timeout, args.blas_threads)
             print(f"{photo.name}: exit {run['exit_code']} in {run['seconds']:.1f} s", file=sys.stderr, flush=True)
         return run
 
@@ -674,7 +694,9 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarise(rows)
     sheet = None if args.no_sheet else contact_sheet(photos, rows, args.out)
 
-    machine = machine_line(load_start, args.workers, args.reuse)
+    threads = {r.get("blas_threads") for r in runs}  # the runs', stored ones with --reuse
+    machine = machine_line(load_start, args.workers, args.reuse,
+                           threads.pop() if len(threads) == 1 else "mixed over the runs", rows)
     print(machine + "\n")
     print(photo_table(rows) + "\n")
     messages = messages_table(rows)
