@@ -13,7 +13,8 @@ beside its folder (``OUT/<photo>.run.json``; its output in ``OUT/<photo>.stdout.
 ``.stderr.txt``), so ``--reuse`` re-measures without re-running.
 
     python benchmarks/bench_real_photos.py [--photos N | NAME ...] [--workers 1] [--out DIR]
-                                           [--data DIR] [--json FILE] [--reuse]
+                                           [--data DIR] [--json FILE] [--reuse] [--blas-threads N]
+                                           [--timeout S] [--no-sheet]
 
 Outcomes: ``body`` (exit 0 and a ``body.step``), ``refused`` (exit 2 with one line
 ``carbody reconstruct: error: ...`` and no traceback: the table shows the line), ``error``
@@ -23,9 +24,10 @@ Definitions (per photo):
 
 - **Time**: wall-clock seconds of the whole process (imports, classifier, fit, surfaces, writing),
   and in brackets its CPU seconds (user + system over all its threads, from ``wait4``). The
-  machine is shared: the load average printed with the tables says how much the wall time was
-  stretched; the CPU time is stretched less, though not nothing (BLAS threads spin while they
-  wait for a core).
+  machine is shared: the load averages printed with the tables say how busy it was. Neither
+  time is immune: with OpenBLAS's default threads a reconstruct on a busy machine spins, its CPU
+  time growing with its wall time (``--blas-threads 1`` shows the work itself; the default,
+  unset, is what a user gets).
 - **Car's image size** S: the larger side of the bounding box of the union of all the photo's
   part polygons in ``parts.json`` (the data set's outline of the car, independent of the fit);
   for a photo without polygons, of its marks. Every pixel distance is given as % of S.
@@ -54,6 +56,9 @@ Definitions (per photo):
   wheels are assigned one-to-one to projected centres minimising the total distance (the
   nearest, without two wheels taking the same centre); the photo's figure is the mean distance
   over its annotated wheels, % of S.
+- **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
+  without a body is not within); medians over the photos where a figure is defined (the count
+  in brackets); wall time median and max.
 - **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``
   not null).
 - **Camera check**: the marks kept by the fit, reprojected here from ``keypoints_mm`` with the
@@ -77,9 +82,9 @@ import platform
 import re
 import shutil
 import statistics
-import textwrap
 import subprocess
 import sys
+import textwrap
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
