@@ -1,0 +1,721 @@
+"""Real photos: ``carbody reconstruct`` as a user runs it on the Car Parts photos, measured
+against what the data set's people drew.
+
+Reads ``../shared/realphotos`` (from the repository's root; ``--data``): ``images/cps_*.jpg``,
+their hand-marked ``keypoints/cps_*.json`` (with ``car``, ``published_mm``,
+``view_estimate_deg``) and ``parts.json`` (the data set's own COCO part polygons, drawn
+independently of the marks). Every photo is reconstructed in a fresh process
+(``python -m carbody reconstruct IMAGE -k MARKS -o OUT/<photo>``: no ``--view``, no
+``--wheelbase``, imports included in the time), one at a time unless ``--workers`` says
+otherwise, into ``out/bench_real_photos/`` (git-ignored; ``--out``), never into the tracked
+tree: these are third-party photos. Each run's exit code, times and last stderr lines are kept
+beside its folder (``OUT/<photo>.run.json``; its output in ``OUT/<photo>.stdout.txt`` /
+``.stderr.txt``), so ``--reuse`` re-measures without re-running.
+
+    python benchmarks/bench_real_photos.py [--photos N | NAME ...] [--workers 1] [--out DIR]
+                                           [--data DIR] [--json FILE] [--reuse] [--blas-threads N]
+                                           [--timeout S] [--no-sheet]
+
+Outcomes: ``body`` (exit 0 and a ``body.step``), ``refused`` (exit 2 with one line
+``carbody reconstruct: error: ...`` and no traceback: the table shows the line), ``error``
+(a traceback, another exit code, a time-out or missing outputs).
+
+Definitions (per photo):
+
+- **Time**: wall-clock seconds of the whole process (imports, classifier, fit, surfaces, writing),
+  and in brackets its CPU seconds (user + system over all its threads, from ``wait4``). The
+  machine is shared: the load averages printed with the tables say how busy it was. Neither
+  time is immune: with OpenBLAS's default threads a reconstruct on a busy machine spins, its CPU
+  time growing with its wall time (``--blas-threads 1`` shows the work itself; the default,
+  unset, is what a user gets).
+- **Car's image size** S: the larger side of the bounding box of the union of all the photo's
+  part polygons in ``parts.json`` (the data set's outline of the car, independent of the fit);
+  for a photo without polygons, of its marks. Every pixel distance is given as % of S.
+- **View**: the fitted azimuth (``report.json["view"]["azimuth_deg"]``) against the file's
+  ``view_estimate_deg`` (by eye, ±10°); Δ is the angular difference, 0–180°.
+- **Residual**: ``report["fit"]["residual_px_mean"]`` (mean distance of the marks kept from
+  their reprojection) as % of S.
+- **Length / width / wheelbase**: of the fitted wireframe (``wireframe.step``): length and
+  wheelbase from ``Wireframe.measure()`` (extent in y of the sampled curves; distance between
+  the wheel centres), width 2 · max |x| of the sampled curves (both halves; door mirrors are not
+  modelled), against ``published_mm``: signed % (+ = fitted too large); blank where the figure
+  is not published. A fit whose "left" half lies at x ≤ 0 is flagged ``mirrored_half``.
+- **IoU** of the projected windshield, rear window and hood (topology regions ``windshield``,
+  ``rear_window``, ``hood``) against the human polygons ``front_glass``, ``back_glass``,
+  ``hood``: each region's loop of curves is sampled on the fitted left half and on its mirror
+  (x → −x), both are projected with the fitted camera (``report["fit"]["camera"]``,
+  :func:`carbody.fit.report.project_with_camera`) and their union is the region's outline
+  (shapely; a self-crossing outline is made valid first). Measured only where the data set
+  annotated the part for that photo (blank otherwise).
+- **Wheel centres**: the fitted car's four wheel centres at (±x, y, z) with (y, z) the
+  wireframe's own wheel centres (:func:`carbody.wireframe.wheel_centre`: ≈ (0, 0) and
+  (wheelbase, 0)) and x that of the fitted ``front_arch_top`` / ``rear_arch_top`` keypoint (the
+  body side at the arch, about the tyre's outer face, which the people outlined), projected
+  with the fitted camera. Each polygon of a ``wheel`` annotation is one wheel (the data set
+  puts several wheels in one annotation); its centre is the polygon's centroid. Annotated
+  wheels are assigned one-to-one to projected centres minimising the total distance (the
+  nearest, without two wheels taking the same centre); the photo's figure is the mean distance
+  over its annotated wheels, % of S.
+- **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
+  without a body is not within); medians over the photos where a figure is defined (the count
+  in brackets); wall time median and max.
+- **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``
+  not null).
+- **Camera check**: the marks kept by the fit, reprojected here from ``keypoints_mm`` with the
+  report's camera, must land ``residual_px_mean`` from the marks on average (in the JSON rows as
+  ``camera_check_px``: the difference; a large one means the instrument and the fit disagree on
+  the camera).
+
+The contact sheet (``OUT/contact_sheet.png``) tiles every photo's ``overlay.png`` (the photo
+with its marks when there is no body), desaturated, with the human polygons filled and the
+projected regions outlined in the same colour per part (windshield yellow, rear window green,
+hood magenta), the annotated wheel centres as white dots joined to their projected centres
+(orange crosses), and the photo's name, outcome, view found / estimated and IoUs written above.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import textwrap
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = REPO.parent / "shared" / "realphotos"
+OUT = REPO / "out" / "bench_real_photos"
+
+OUTCOMES = ("body", "refused", "error")
+
+#: (topology region, data-set part) pairs measured by IoU, with the tile colours (BGR).
+REGION_PARTS = (("windshield", "front_glass"), ("rear_window", "back_glass"), ("hood", "hood"))
+REGION_COLOURS = {"windshield": (0, 230, 255), "rear_window": (60, 255, 60), "hood": (255, 60, 255)}
+WHEEL_ANNOTATED, WHEEL_PROJECTED = (255, 255, 255), (0, 140, 255)
+
+#: A view found within this of the estimate counts as right (the estimate itself is ±10°).
+VIEW_OK_DEG = 15.0
+
+#: A fitted "left" half reaching no further than this (mm) to x > 0, and further to x < 0, lies
+#: on the right: flagged (``mirrored_half``).
+MIRRORED_MM = 1.0
+
+#: Seconds one reconstruct may take before it counts as an error.
+TIMEOUT_S = 900.0
+
+REFUSAL = re.compile(r"^carbody reconstruct: error: .+")
+
+
+@dataclass
+class Photo:
+    """One photo of the data: its files, the keypoint file's extra fields and its part polygons.
+
+    Attributes:
+        name: the file stem (``cps_te12``).
+        image, marks: the JPEG and the keypoint file.
+        meta: the keypoint file's contents (``car``, ``published_mm``, ``view_estimate_deg`` …).
+        parts: {part name: [(N, 2) float px polygons]}, one entry per polygon of every
+            annotation of that part.
+    """
+
+    name: str
+    image: Path
+    marks: Path
+    meta: dict
+    parts: dict[str, list[np.ndarray]]
+
+
+def natural_key(name: str) -> tuple:
+    """Sort ``cps_te4`` before ``cps_te12``."""
+    return tuple(int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name))
+
+
+def load_photos(data: Path) -> list[Photo]:
+    """Every photo of ``data`` with its marks and part polygons, in natural name order."""
+    coco = json.loads((data / "parts.json").read_text())
+    categories = {c["id"]: c["name"] for c in coco["categories"]}
+    by_file: dict[str, dict[str, list[np.ndarray]]] = {i["file_name"]: {} for i in coco["images"]}
+    files = {i["id"]: i["file_name"] for i in coco["images"]}
+    for a in coco["annotations"]:
+        polys = by_file[files[a["image_id"]]].setdefault(categories[a["category_id"]], [])
+        polys += [np.asarray(s, dtype=float).reshape(-1, 2) for s in a["segmentation"] if len(s) >= 6]
+    photos = []
+    for marks in sorted((data / "keypoints").glob("*.json"), key=lambda p: natural_key(p.stem)):
+        meta = json.loads(marks.read_text())
+        photos.append(Photo(marks.stem, data / "images" / meta["image"], marks, meta,
+                            by_file.get(meta["image"], {})))
+    return photos
+
+
+def select(photos: list[Photo], wanted: list[str] | None) -> list[Photo]:
+    """``--photos``: None = all; one number N = the first N; else names (``te12``, ``cps_te12``,
+    ``cps_te12.jpg``)."""
+    if not wanted:
+        return photos
+    if len(wanted) == 1 and wanted[0].isdigit():
+        return photos[:int(wanted[0])]
+    by_name = {p.name: p for p in photos}
+    out = []
+    for w in wanted:
+        stem = Path(w).stem
+        stem = stem if stem in by_name else f"cps_{stem}"
+        if stem not in by_name:
+            sys.exit(f"bench_real_photos: no photo {w!r} (have {', '.join(by_name)})")
+        out.append(by_name[stem])
+    return out
+
+
+# --- running ---------------------------------------------------------------------------------
+
+def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S, blas_threads: int | None = None) -> dict:
+    """Reconstruct one photo in a fresh process, as a user would; returns (and stores beside the
+    output folder, ``OUT/<photo>.run.json``) {exit_code, seconds (wall), cpu_seconds (the
+    process's user + system time over its threads), stderr_tail, load_before, command,
+    blas_threads}. Its stdout and stderr go to ``OUT/<photo>.stdout.txt`` / ``.stderr.txt``.
+    ``blas_threads``: the numerical libraries' thread count set for the run (None: left as a
+    user's environment has it)."""
+    import threading
+
+    folder = out / photo.name
+    shutil.rmtree(folder, ignore_errors=True)  # no stale files survive a refusal
+    cmd = [sys.executable, "-m", "carbody", "reconstruct", str(photo.image), "-k", str(photo.marks),
+           "-o", str(folder)]
+    stdout_path, stderr_path = out / f"{photo.name}.stdout.txt", out / f"{photo.name}.stderr.txt"
+    load = os.getloadavg()[0]
+    with open(stdout_path, "w") as stdout, open(stderr_path, "w") as stderr:
+        start = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=stdout, stderr=stderr, stdin=subprocess.DEVNULL, text=True,
+                                env={**os.environ, **blas_environment(blas_threads)}, cwd=REPO)
+        timer = threading.Timer(timeout_s, proc.kill)
+        timer.start()
+        # wait4, not Popen.wait: the child's own CPU time, right with several workers
+        _, status, usage = os.wait4(proc.pid, 0)
+        seconds = time.perf_counter() - start
+        timed_out = not timer.is_alive()
+        timer.cancel()
+    proc.returncode = code = None if timed_out else os.waitstatus_to_exitcode(status)
+    tail = stderr_path.read_text(errors="replace").strip().splitlines()[-30:]
+    if timed_out:
+        tail.append(f"(timed out after {timeout_s:.0f} s)")
+    run = {"photo": photo.name, "exit_code": code, "seconds": seconds,
+           "cpu_seconds": usage.ru_utime + usage.ru_stime, "stderr_tail": tail, "load_before": load,
+           "command": " ".join(cmd[1:]), "blas_threads": blas_threads}
+    (out / f"{photo.name}.run.json").write_text(json.dumps(run, indent=1))
+    return run
+
+
+def blas_environment(threads: int | None) -> dict[str, str]:
+    """The variables that set numpy's, scipy's and torch's thread pools to ``threads`` ({} for
+    None)."""
+    if threads is None:
+        return {}
+    return {k: str(threads) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+
+
+def stored_run(photo: Photo, out: Path) -> dict | None:
+    path = out / f"{photo.name}.run.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def outcome_of(run: dict, folder: Path) -> tuple[str, str | None]:
+    """(outcome, the refusal line or the error's last line, None for a body)."""
+    tail = run["stderr_tail"]
+    traceback = any(line.startswith("Traceback") for line in tail)
+    if run["exit_code"] == 0 and not traceback and (folder / "body.step").exists() \
+            and (folder / "report.json").exists():
+        return "body", None
+    lines = [line for line in tail if line.strip()]
+    if run["exit_code"] == 2 and not traceback and len(lines) == 1 and REFUSAL.match(lines[0]):
+        return "refused", lines[0]
+    last = lines[-1] if lines else "(no output)"
+    if run["exit_code"] == 0:
+        last = "exit 0 without body.step / report.json"
+    return "error", f"exit {run['exit_code']}: {last}"
+
+
+# --- measuring -------------------------------------------------------------------------------
+
+def car_image_size(photo: Photo) -> tuple[float, str]:
+    """S px: the larger side of the bounding box of all the photo's part polygons (``"parts"``),
+    else of its marks (``"marks"``)."""
+    polys = [p for ps in photo.parts.values() for p in ps]
+    pts, source = (np.concatenate(polys), "parts") if polys else \
+        (np.array(list(photo.meta["keypoints"].values()), dtype=float), "marks")
+    return float(np.ptp(pts, axis=0).max()), source
+
+
+def polygon(points: np.ndarray):
+    """A valid shapely (multi)polygon of a possibly self-crossing (N, 2) outline (empty if
+    degenerate)."""
+    import shapely
+    from shapely.geometry import Polygon
+
+    if len(points) < 3 or not np.all(np.isfinite(points)):
+        return Polygon()
+    poly = shapely.make_valid(Polygon(points))
+    # make_valid may leave the crossing's lines beside the areas: keep the areas only
+    return shapely.union_all([g for g in getattr(poly, "geoms", [poly]) if g.area > 0]) \
+        if poly.geom_type == "GeometryCollection" else poly
+
+
+def region_outline_3d(control_points: np.ndarray, region_name: str, samples: int = 24) -> np.ndarray:
+    """(N, 3) mm: the left half's loop of ``region_name``, sampled in loop order."""
+    from carbody.topology import load_topology
+    from carbody.wireframe import sample_curves
+
+    topo = load_topology()
+    curves = sample_curves(control_points, samples)
+    loop = [curves[ci][::-1] if rev else curves[ci] for ci, rev in topo.region(region_name).loop]
+    return np.concatenate([c[:-1] for c in loop])  # each curve's end is the next one's start
+
+
+def projected_region(camera: dict, control_points: np.ndarray, region_name: str):
+    """The region's outline in the photo: union of its left loop's and mirror's projections."""
+    import shapely
+
+    from carbody.fit.report import project_with_camera
+    from carbody.wireframe import MIRROR
+
+    loop = region_outline_3d(control_points, region_name)
+    return shapely.union_all([polygon(project_with_camera(camera, half)) for half in (loop, loop * MIRROR)])
+
+
+def projected_wheel_centres(camera: dict, control_points: np.ndarray) -> np.ndarray:
+    """(4, 2) px: front left, front right, rear left, rear right wheel centres (module doc)."""
+    from carbody.fit.report import project_with_camera
+    from carbody.topology import load_topology
+    from carbody.wireframe import wheel_centre
+
+    topo = load_topology()
+    centres = []
+    for side, arch in (("front", "front_arch_top"), ("rear", "rear_arch_top")):
+        x = abs(control_points[topo.junction_point_index(arch), 0])
+        y, z = wheel_centre(control_points, topo, side)
+        centres += [(x, y, z), (-x, y, z)]
+    return project_with_camera(camera, np.array(centres))
+
+
+def wheel_matches(annotated: np.ndarray, projected: np.ndarray) -> list[tuple[int, int, float]]:
+    """[(annotated i, projected j, distance px)]: one-to-one, least total distance."""
+    from scipy.optimize import linear_sum_assignment
+
+    d = np.linalg.norm(annotated[:, None, :] - projected[None, :, :], axis=2)
+    rows, cols = linear_sum_assignment(d)
+    return [(int(i), int(j), float(d[i, j])) for i, j in zip(rows, cols)]
+
+
+def part_union(photo: Photo, part: str):
+    import shapely
+
+    return shapely.union_all([polygon(p) for p in photo.parts.get(part, [])])
+
+
+def annotated_wheel_centres(photo: Photo) -> np.ndarray:
+    """(k, 2) px: centroid of each wheel polygon."""
+    cs = [polygon(p).centroid for p in photo.parts.get("wheel", [])]
+    return np.array([(c.x, c.y) for c in cs if not c.is_empty]).reshape(-1, 2)
+
+
+def camera_check_px(report: dict, marks: dict[str, list[float]]) -> float | None:
+    """|mean distance of the kept marks from their reprojection by ``project_with_camera`` −
+    the report's ``residual_px_mean``| px, or None if no mark can be reprojected here."""
+    from carbody.fit.report import project_with_camera
+
+    fit = report["fit"]
+    names = [n for n in fit["residual_px"] if n in marks]
+    kp = fit["keypoints_mm"]
+
+    def mm(name):  # a right-half mark is its left twin mirrored
+        if name in kp:
+            return kp[name]
+        x, y, z = kp[name.removesuffix("_right")]
+        return [-x, y, z]
+    if not names:
+        return None
+    uv = project_with_camera(fit["camera"], np.array([mm(n) for n in names]))
+    d = np.linalg.norm(uv - np.array([marks[n] for n in names]), axis=1)
+    return float(abs(d.mean() - fit["residual_px_mean"]))
+
+
+def fitted_width_mm(control_points: np.ndarray, samples: int = 200) -> float:
+    """The body's width, both halves: 2 · max |x| over the sampled curves (mm). Unlike
+    ``Wireframe.measure()["width_mm"]`` (2 · max x), right also for a fit whose "left" half came
+    out at x ≤ 0: the body, a half and its mirror, is the same."""
+    from carbody.wireframe import sample_curves
+
+    return float(2.0 * np.abs(sample_curves(control_points, samples)[..., 0]).max())
+
+
+def pct_error(fitted: float, published: float | None) -> float | None:
+    return None if not published else 100.0 * (fitted / published - 1.0)
+
+
+def fitted(folder: Path):
+    """(report.json as a dict, the fitted :class:`~carbody.wireframe.Wireframe`) of a body's folder."""
+    from carbody.wireframe import read_wireframe
+
+    return json.loads((folder / "report.json").read_text()), read_wireframe(folder / "wireframe.step")
+
+
+def measure(photo: Photo, run: dict, out: Path) -> dict:
+    """One row of the table (module docstring); metrics None where undefined."""
+    from carbody.view.labels import angular_difference
+
+    folder = out / photo.name
+    outcome, line = outcome_of(run, folder)
+    size, size_from = car_image_size(photo)
+    published = photo.meta.get("published_mm") or {}
+    row = {"photo": photo.name, "car": photo.meta.get("car"), "outcome": outcome, "message": line,
+           "exit_code": run["exit_code"], "seconds": run["seconds"], "cpu_seconds": run.get("cpu_seconds"),
+           "load_before": run.get("load_before"),
+           "view_estimate_deg": photo.meta.get("view_estimate_deg"), "image_size_px": size,
+           "image_size_from": size_from, "published_mm": published,
+           "parts": sorted(photo.parts), "wheels_annotated": len(photo.parts.get("wheel", [])),
+           "view_found_deg": None, "view_diff_deg": None, "view_source": None, "residual_px_mean": None,
+           "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
+           "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
+           "wheel_dist_px": None, "fallback": None, "camera_check_px": None, "mirrored_half": None}
+    if outcome != "body":
+        return row
+    report, wireframe = fitted(folder)
+    fit, camera, cp = report["fit"], report["fit"]["camera"], wireframe.control_points
+    found = float(report["view"]["azimuth_deg"])
+    sizes = wireframe.measure()
+    row.update(view_found_deg=found, view_source=report["view"]["source"],
+               residual_px_mean=fit["residual_px_mean"], residual_pct=100.0 * fit["residual_px_mean"] / size,
+               fitted_mm={"length": sizes["length_mm"], "width": fitted_width_mm(cp),
+                          "wheelbase": sizes["wheelbase_mm"]},
+               mirrored_half=bool(cp[:, 0].max() < MIRRORED_MM < -cp[:, 0].min()),
+               fallback=report["fit_fallback"],
+               camera_check_px=camera_check_px(report, photo.meta["keypoints"]))
+    if row["view_estimate_deg"] is not None:
+        row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
+    for key in ("length", "width", "wheelbase"):
+        row[f"{key}_err_pct"] = pct_error(row["fitted_mm"][key], published.get(key))
+    for region, part in REGION_PARTS:
+        if part in photo.parts:
+            human, ours = part_union(photo, part), projected_region(camera, cp, region)
+            union = human.union(ours).area
+            row["iou"][region] = float(human.intersection(ours).area / union) if union > 0 else 0.0
+    wheels = annotated_wheel_centres(photo)
+    if len(wheels):
+        d = [m[2] for m in wheel_matches(wheels, projected_wheel_centres(camera, cp))]
+        row["wheel_dist_px"] = float(np.mean(d))
+        row["wheel_dist_pct"] = 100.0 * row["wheel_dist_px"] / size
+    return row
+
+
+# --- tables ----------------------------------------------------------------------------------
+
+def fmt(v, spec: str = ".0f", signed: bool = False) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return ""
+    return format(v, ("+" if signed else "") + spec)
+
+
+def photo_table(rows: list[dict]) -> str:
+    head = ("| photo | outcome | time s (CPU) | view found / est. (Δ) ° | residual % | length % | width % | "
+            "wheelbase % | IoU windshield | IoU rear window | IoU hood | wheel centres % (n) | fallback |")
+    lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
+    for r in rows:
+        view = (f"{r['view_found_deg']:.0f} / {r['view_estimate_deg']} ({r['view_diff_deg']:.0f})"
+                if r["view_found_deg"] is not None else f"– / {r['view_estimate_deg']}")
+        wheel = f"{r['wheel_dist_pct']:.1f} ({r['wheels_annotated']})" if r["wheel_dist_pct"] is not None else ""
+        fb = "" if r["outcome"] != "body" else ("yes" if r["fallback"] else "no")
+        lines.append(f"| {r['photo'].removeprefix('cps_')} | {r['outcome']} | "
+                     f"{r['seconds']:.0f} ({fmt(r['cpu_seconds'])}) | {view} | "
+                     f"{fmt(r['residual_pct'], '.1f')} | {fmt(r['length_err_pct'], signed=True)} | "
+                     f"{fmt(r['width_err_pct'], signed=True)} | {fmt(r['wheelbase_err_pct'], signed=True)} | "
+                     + " | ".join(fmt(r["iou"][k], ".2f") for k, _ in REGION_PARTS)
+                     + f" | {wheel} | {fb} |")
+    return "\n".join(lines)
+
+
+def messages_table(rows: list[dict]) -> str:
+    """The refusals' lines and errors' last lines, the fallbacks' reasons, mirrored halves."""
+    lines = ["| photo | outcome | message |", "|---|---|---|"]
+    for r in rows:
+        name = r["photo"].removeprefix("cps_")
+        if r["message"]:
+            lines.append(f"| {name} | {r['outcome']} | `{r['message']}` |")
+        if r["fallback"]:
+            fb = r["fallback"]
+            lines.append(f"| {name} | fallback | {fb.get('fit')} "
+                         f"({fb.get('share_of_fit', 0):.0%} of the fit) after `{fb.get('reason')}` |")
+        if r["mirrored_half"]:
+            lines.append(f"| {name} | mirrored | the fitted left half lies at x ≤ 0 (the body is still a half "
+                         "and its mirror: width measured as 2 · max \\|x\\|) |")
+    return "\n".join(lines) if len(lines) > 2 else ""
+
+
+def median_or_none(values) -> float | None:
+    vals = [v for v in values if v is not None]
+    return statistics.median(vals) if vals else None
+
+
+def summarise(rows: list[dict]) -> dict:
+    n = len(rows)
+    counts = {o: sum(r["outcome"] == o for r in rows) for o in OUTCOMES}
+    viewed = [r for r in rows if r["view_diff_deg"] is not None]
+    ok = sum(r["view_diff_deg"] <= VIEW_OK_DEG for r in viewed)
+
+    def med_abs(key):
+        return median_or_none(abs(r[key]) if r[key] is not None else None for r in rows)
+    times = [r["seconds"] for r in rows]
+    cpu = [r["cpu_seconds"] for r in rows if r["cpu_seconds"] is not None]
+    return {
+        "photos": n, "outcomes": counts, "body_pct": 100.0 * counts["body"] / n if n else None,
+        "view_within_deg": VIEW_OK_DEG, "view_within": ok, "view_measured": len(viewed),
+        "view_within_pct_of_photos": 100.0 * ok / n if n else None,
+        "median_abs_length_err_pct": med_abs("length_err_pct"),
+        "median_abs_width_err_pct": med_abs("width_err_pct"),
+        "median_abs_wheelbase_err_pct": med_abs("wheelbase_err_pct"),
+        "median_residual_pct": median_or_none(r["residual_pct"] for r in rows),
+        **{f"median_iou_{k}": median_or_none(r["iou"][k] for r in rows) for k, _ in REGION_PARTS},
+        **{f"iou_{k}_measured": sum(r["iou"][k] is not None for r in rows) for k, _ in REGION_PARTS},
+        "median_wheel_dist_pct": median_or_none(r["wheel_dist_pct"] for r in rows),
+        "wheel_dist_measured": sum(r["wheel_dist_pct"] is not None for r in rows),
+        "median_time_s": statistics.median(times) if times else None, "max_time_s": max(times, default=None),
+        "median_cpu_s": statistics.median(cpu) if cpu else None, "max_cpu_s": max(cpu, default=None),
+        "fallbacks": sum(bool(r["fallback"]) for r in rows),
+        "mirrored_halves": sum(bool(r["mirrored_half"]) for r in rows),
+        "max_camera_check_px": max((r["camera_check_px"] for r in rows if r["camera_check_px"] is not None),
+                                   default=None),
+    }
+
+
+def summary_table(s: dict) -> str:
+    n, c = s["photos"], s["outcomes"]
+
+    def with_n(region: str) -> str:
+        return f"{fmt(s[f'median_iou_{region}'], '.2f') or '–'} (of {s[f'iou_{region}_measured']})"
+
+    lines = ["| measure | value |", "|---|---|",
+             f"| photos | {n} |",
+             f"| outcomes | {c['body']} body, {c['refused']} refused (exit 2), {c['error']} error |",
+             f"| with a body | {fmt(s['body_pct'])} % |",
+             f"| view within {s['view_within_deg']:.0f}° of the estimate | {s['view_within']} of {n} "
+             f"({fmt(s['view_within_pct_of_photos'])} %; {s['view_measured']} with a view found) |",
+             f"| median residual, % of the car's image size | {fmt(s['median_residual_pct'], '.1f')} |",
+             "| median \\|length\\| / \\|width\\| / \\|wheelbase\\| error | "
+             f"{fmt(s['median_abs_length_err_pct'], '.1f')} / "
+             f"{fmt(s['median_abs_width_err_pct'], '.1f')} / {fmt(s['median_abs_wheelbase_err_pct'], '.1f')} "
+             "% |",
+             f"| median IoU windshield ↔ front_glass | {with_n('windshield')} |",
+             f"| median IoU rear window ↔ back_glass | {with_n('rear_window')} |",
+             f"| median IoU hood ↔ hood | {with_n('hood')} |",
+             f"| median wheel-centre distance, % of the car's image size | "
+             f"{fmt(s['median_wheel_dist_pct'], '.1f') or '–'} (of {s['wheel_dist_measured']}) |",
+             f"| time per photo (wall), median / max | {fmt(s['median_time_s'], '.1f')} / "
+             f"{fmt(s['max_time_s'], '.1f')} s |",
+             f"| CPU time per photo (user + system), median / max | {fmt(s['median_cpu_s'], '.1f')} / "
+             f"{fmt(s['max_cpu_s'], '.1f')} s |",
+             f"| stiffer fallback used | {s['fallbacks']} |",
+             f"| fitted left half at x ≤ 0 (mirrored) | {s['mirrored_halves']} |"]
+    return "\n".join(lines)
+
+
+def machine_line(load_start: tuple[float, float, float], workers: int, reused: bool,
+                 blas_threads: int | str | None = None, rows: list[dict] = ()) -> str:
+    """One line: cores, CPU, Python, the load average at start and end, and before the runs
+    themselves (the rows' ``load_before``: with ``--reuse`` the runs were earlier)."""
+    load_end = os.getloadavg()
+    before = [r["load_before"] for r in rows if r.get("load_before") is not None]
+    cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                if line.startswith("model name")), platform.processor()) if Path("/proc/cpuinfo").exists() \
+        else platform.processor()
+    return (f"machine: {os.cpu_count()} cores ({cpu}), Python {platform.python_version()}; load average "
+            f"(1/5/15 min) {'/'.join(f'{v:.2f}' for v in load_start)} at start, "
+            f"{'/'.join(f'{v:.2f}' for v in load_end)} at end; {workers} worker(s); BLAS threads "
+            + ("as the environment has them (a user's)" if blas_threads is None else f"set to {blas_threads}")
+            + (f"; 1-min load average before each run: median {statistics.median(before):.2f}, "
+               f"{min(before):.2f}–{max(before):.2f}" if before else "")
+            + ("; times from the stored runs (--reuse)" if reused else ""))
+
+
+# --- contact sheet ---------------------------------------------------------------------------
+
+TILE_W, TILE_H, BAND_H = 400, 280, 76
+
+
+def draw_tile(photo: Photo, row: dict, out: Path) -> np.ndarray:
+    """(BAND_H + TILE_H, TILE_W, 3) uint8 BGR: the overlay (or the photo and its marks), the
+    human polygons filled, the projected regions outlined, wheel centres, and the row's text."""
+    import cv2
+
+    folder = out / photo.name
+    overlay = folder / "overlay.png"
+    img = cv2.imread(str(overlay if row["outcome"] == "body" and overlay.exists() else photo.image))
+    if img is None:
+        img = np.full((TILE_H, TILE_W, 3), 60, np.uint8)
+    if row["outcome"] != "body":  # no overlay: the marks as the fit got them
+        for u, v in photo.meta["keypoints"].values():
+            cv2.circle(img, (round(u), round(v)), max(2, img.shape[1] // 300), (0, 0, 255), -1, cv2.LINE_AA)
+    h, w = img.shape[:2]
+    k = min(TILE_W / w, TILE_H / h)
+    small = cv2.resize(img, (round(w * k), round(h * k)), interpolation=cv2.INTER_AREA)
+    grey = cv2.cvtColor(cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR)
+    small = cv2.addWeighted(small, 0.45, grey, 0.55, 0)  # muted, so the measured colours stand out
+    tile = np.full((TILE_H, TILE_W, 3), 30, np.uint8)
+    oy, ox = (TILE_H - small.shape[0]) // 2, (TILE_W - small.shape[1]) // 2
+    tile[oy:oy + small.shape[0], ox:ox + small.shape[1]] = small
+
+    def px(points) -> np.ndarray:
+        return np.round((np.asarray(points) * k + [ox, oy]) * 16).astype(np.int32)
+
+    def rings(geom):
+        for g in getattr(geom, "geoms", [geom]):
+            if g.geom_type == "Polygon" and not g.is_empty:
+                yield np.asarray(g.exterior.coords)
+
+    fill = tile.copy()
+    for region, part in REGION_PARTS:
+        for p in photo.parts.get(part, []):
+            cv2.fillPoly(fill, [px(p)], REGION_COLOURS[region], cv2.LINE_AA, shift=4)
+    tile = cv2.addWeighted(fill, 0.35, tile, 0.65, 0)
+    wheels = annotated_wheel_centres(photo)
+    if row["outcome"] == "body":
+        report, wireframe = fitted(folder)
+        camera, cp = report["fit"]["camera"], wireframe.control_points
+        for region, part in REGION_PARTS:
+            if part in photo.parts:
+                for ring in rings(projected_region(camera, cp, region)):
+                    cv2.polylines(tile, [px(ring)], True, REGION_COLOURS[region], 2, cv2.LINE_AA, shift=4)
+        projected = projected_wheel_centres(camera, cp)
+        for c in projected:
+            (u, v), s = px(c) // 16, 5
+            cv2.line(tile, (u - s, v - s), (u + s, v + s), WHEEL_PROJECTED, 2, cv2.LINE_AA)
+            cv2.line(tile, (u - s, v + s), (u + s, v - s), WHEEL_PROJECTED, 2, cv2.LINE_AA)
+        if len(wheels):
+            for i, j, _ in wheel_matches(wheels, projected):
+                cv2.line(tile, tuple(px(wheels[i]) // 16), tuple(px(projected[j]) // 16), WHEEL_PROJECTED, 1,
+                         cv2.LINE_AA)
+    for c in wheels:
+        cv2.circle(tile, tuple(px(c) // 16), 4, WHEEL_ANNOTATED, -1, cv2.LINE_AA)
+        cv2.circle(tile, tuple(px(c) // 16), 4, (0, 0, 0), 1, cv2.LINE_AA)
+
+    band = np.full((BAND_H, TILE_W, 3), 15, np.uint8)
+    colour = {"body": (120, 230, 120), "refused": (60, 180, 255), "error": (80, 80, 255)}[row["outcome"]]
+    found = f"{row['view_found_deg']:.0f}" if row["view_found_deg"] is not None else "-"
+    text1 = f"{photo.name.removeprefix('cps_')}  {row['outcome']}  {row['seconds']:.0f} s" \
+            + ("  fallback" if row["fallback"] else "")
+    text2 = f"view {found} / est {row['view_estimate_deg']}" \
+            + (f" (d {row['view_diff_deg']:.0f})" if row["view_diff_deg"] is not None else "") \
+            + (f"  wheels {row['wheel_dist_pct']:.1f}%" if row["wheel_dist_pct"] is not None else "")
+    ious = [(name, row["iou"][r]) for (r, _), name in zip(REGION_PARTS, ("ws", "rw", "hood"))
+            if row["iou"][r] is not None]
+    if row["outcome"] == "body":
+        texts = ["IoU " + "  ".join(f"{n} {v:.2f}" for n, v in ious) if ious else "no glass or hood annotated"]
+    else:  # the refusal's line (or the error's last line) in two
+        message = (row["message"] or "").removeprefix("carbody reconstruct: error: ")
+        texts = textwrap.wrap(message, 58)[:2]
+    for i, (text, col) in enumerate([(text1, colour), (text2, (235, 235, 235))]
+                                    + [(t, (235, 235, 235)) for t in texts]):
+        cv2.putText(band, text, (6, 17 + 18 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.47, col, 1, cv2.LINE_AA)
+    return np.vstack([band, tile])
+
+
+def legend(width: int) -> np.ndarray:
+    import cv2
+
+    band = np.full((34, width, 3), 15, np.uint8)
+    x = 8
+    items = [(f"{r.replace('_', ' ')}: human filled, projected outline", REGION_COLOURS[r]) for r, _ in REGION_PARTS]
+    items += [("wheel centre: annotated (dot)", WHEEL_ANNOTATED), ("projected (cross)", WHEEL_PROJECTED)]
+    for text, col in items:
+        cv2.rectangle(band, (x, 10), (x + 14, 24), col, -1)
+        cv2.putText(band, text, (x + 20, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (235, 235, 235), 1, cv2.LINE_AA)
+        x += 30 + cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0]
+    return band
+
+
+def contact_sheet(photos: list[Photo], rows: list[dict], out: Path, columns: int = 6) -> Path:
+    """Every photo's tile in one picture, ``OUT/contact_sheet.png``."""
+    import cv2
+
+    tiles = [draw_tile(p, r, out) for p, r in zip(photos, rows)]
+    columns = max(1, min(columns, len(tiles)))
+    blank = np.zeros_like(tiles[0])
+    tiles += [blank] * (-len(tiles) % columns)
+    grid = np.vstack([np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)])
+    sheet = np.vstack([legend(grid.shape[1]), grid])
+    path = out / "contact_sheet.png"
+    if not cv2.imwrite(str(path), sheet):
+        raise OSError(f"{path}: cannot write the contact sheet")
+    return path
+
+
+# --- main ------------------------------------------------------------------------------------
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", type=Path, default=DATA, help=f"the real-photo data (default {DATA})")
+    ap.add_argument("--out", type=Path, default=OUT, help=f"output folder (default {OUT})")
+    ap.add_argument("--photos", nargs="+", default=None, metavar="N|NAME",
+                    help="a number N (the first N photos) or photo names (te12, cps_te12); default all")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="reconstructs at once (default 1: on a small machine more share the cores and "
+                         "the times stop being a user's)")
+    ap.add_argument("--reuse", action="store_true",
+                    help="re-measure the stored outputs and times without re-running (photos never "
+                         "run are run)")
+    ap.add_argument("--blas-threads", type=int, default=None, metavar="N",
+                    help="set OPENBLAS/OMP/MKL_NUM_THREADS=N for the reconstructs (default: not set, as a "
+                         "user runs it; on a loaded machine OpenBLAS's own threads make the fit several "
+                         "times slower)")
+    ap.add_argument("--timeout", type=float, default=TIMEOUT_S, help="seconds per reconstruct (an error after)")
+    ap.add_argument("--json", type=Path, default=None, help="also write the rows and summary as JSON here")
+    ap.add_argument("--no-sheet", action="store_true", help="skip the contact sheet")
+    args = ap.parse_args(argv)
+
+    if not (args.data / "parts.json").exists():
+        print(f"bench_real_photos: no real-photo data at {args.data}", file=sys.stderr)
+        return 2
+    photos = select(load_photos(args.data), args.photos)
+    args.out.mkdir(parents=True, exist_ok=True)
+    load_start = os.getloadavg()
+
+    def run_one(photo: Photo) -> dict:
+        run = stored_run(photo, args.out) if args.reuse else None
+        if run is None:
+            run = run_photo(photo, args.out, args.timeout, args.blas_threads)
+            print(f"{photo.name}: exit {run['exit_code']} in {run['seconds']:.1f} s", file=sys.stderr, flush=True)
+        return run
+
+    with ThreadPoolExecutor(max_workers=max(1, args.workers)) as pool:
+        runs = list(pool.map(run_one, photos))
+    rows = [measure(p, r, args.out) for p, r in zip(photos, runs)]
+    summary = summarise(rows)
+    sheet = None if args.no_sheet else contact_sheet(photos, rows, args.out)
+
+    threads = {r.get("blas_threads") for r in runs}  # the runs', stored ones with --reuse
+    machine = machine_line(load_start, args.workers, args.reuse,
+                           threads.pop() if len(threads) == 1 else "mixed over the runs", rows)
+    print(machine + "\n")
+    print(photo_table(rows) + "\n")
+    messages = messages_table(rows)
+    if messages:
+        print(messages + "\n")
+    print(summary_table(summary))
+    if sheet is not None:
+        print(f"\ncontact sheet: {sheet}")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps({"machine": machine, "rows": rows, "summary": summary,
+                                         "contact_sheet": None if sheet is None else str(sheet)}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
