@@ -73,13 +73,12 @@ def folded_roof():
 
 
 def test_a_region_whose_outline_folds_is_laid_out_by_arc_length_on_its_curves():
+    from carbody.errors import RegionLayoutError
     from carbody.occ.checks import points_to_faces_distance
     from carbody.surface import build_body
     from carbody.surface.regions import boundary_samples, region_outlines
     from carbody.topology import load_topology
     from carbody.wireframe import Wireframe
-
-    from carbody.errors import RegionLayoutError
 
     cp = folded_roof()
     roof = next(o for o in region_outlines(cp) if o.name == "roof")
@@ -220,7 +219,8 @@ def test_damaged_wireframes_surface_or_raise_surface_error_only(templates, topol
 
 
 def _impossible(kind: str):
-    """(control points, region and curve the error must name) of a template broken one way."""
+    """(control points, how the error must start, a curve or junction it must name) of a template
+    broken one way."""
     from carbody.topology import load_topology
 
     topo = load_topology()
@@ -235,21 +235,26 @@ def _impossible(kind: str):
         c = topo.curve("sill_bottom_2")
         cp[groups[c.end]] = cp[rows(c.name).start]
         cp[rows(c.name)] = cp[rows(c.name).start]
-        return cp, "region sill", "sill_bottom_2"
+        return cp, "region sill:", "sill_bottom_2"
     if kind == "coincident":  # both ends of the roof side's middle curve on one spot
         c = topo.curve("roof_side_2")
         cp[groups[c.end]] = cp[rows(c.name).start]
-        return cp, "region roof", "roof_side_a"
+        return cp, "region roof:", "roof_side_a"
     if kind == "off_plane":  # a centre curve bowed off the symmetry plane
         cp[rows("hood_centre_2").start + 1, 0] = 40.0
-        return cp, "region hood", "hood_centre_2"
+        return cp, "region hood:", "hood_centre_2"
     if kind == "nan":
         cp[rows("door_front_edge").start + 2, 1] = np.nan
-        return cp, "region front_wheel_arch", "door_front_edge"
+        return cp, "region front_wheel_arch:", "door_front_edge"
+    if kind == "no_wheelbase":  # both wheel centres' arch points on one spot
+        for side in ("front", "rear"):
+            for j in topo.wheel_centres[side]:
+                cp[groups[j]] = 0.0
+        return cp, "the wheel centres", topo.wheel_centres["front"][0]
     raise ValueError(kind)
 
 
-@pytest.mark.parametrize("kind", ["zero_length", "coincident", "off_plane", "nan"])
+@pytest.mark.parametrize("kind", ["zero_length", "coincident", "off_plane", "nan", "no_wheelbase"])
 def test_an_impossible_region_is_one_surface_error_naming_it_and_its_curves(kind):
     from carbody.surface import build_body
     from carbody.wireframe import Wireframe
@@ -258,4 +263,4 @@ def test_an_impossible_region_is_one_surface_error_naming_it_and_its_curves(kind
     with pytest.raises(SurfaceError) as info:
         build_body(Wireframe(kind, cp))
     message = str(info.value)
-    assert message.startswith(region + ":") and curve in message and "\n" not in message
+    assert message.startswith(region) and curve in message and "\n" not in message

@@ -27,6 +27,8 @@ Everything here is numpy; no OCCT.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from carbody.errors import SurfaceError
@@ -38,7 +40,7 @@ from carbody.surface.regions import Chain, RegionOutline
 CORRESPONDENCE_PER_CURVE = 16
 
 
-def _fractions(chain: Chain) -> tuple[callable, callable]:
+def _fractions(chain: Chain) -> tuple[Callable, Callable]:
     """(s -> arc-length fraction, fraction -> s) of a chain, from its dense arc table."""
     s, arc = chain.arc_table()
     total = arc[-1]

@@ -7,6 +7,11 @@
     body.shape                        # TopoDS_Shell, both halves, sewn
     body.faces                        # [(region name, TopoDS_Face)], every face of body.shape
     body.report                       # quality figures (see build_body)
+
+Each region is laid out the paper's way (projection onto its best-fit plane, skeleton, ribs);
+where that fails on a wireframe (its outline folds in the plane, its ribs cross), by arc length
+from its boundary curves alone (:mod:`carbody.surface.arc_layout`). Either way every face edge
+on a wireframe curve is an exact sub-arc of it, and the report says which layout each region got.
 """
 from __future__ import annotations
 
@@ -73,12 +78,21 @@ class Body:
 
 
 def wheelbase_of(control_points: np.ndarray, topology: Topology | None = None) -> float:
-    """Wheelbase (mm) of a wireframe: distance between its two wheel centres in side view."""
+    """Wheelbase (mm) of a wireframe: distance between its two wheel centres in side view.
+
+    Raises:
+        SurfaceError: the wheel centres coincide (or are not numbers).
+    """
     from carbody.wireframe import wheel_centre
 
     topo = topology or load_topology()
     f, r = (wheel_centre(control_points, topo, s) for s in ("front", "rear"))
-    return float(np.hypot(*(r - f)))
+    wheelbase = float(np.hypot(*(r - f)))
+    if not 0 < wheelbase < np.inf:
+        raise SurfaceError(f"the wheel centres (between junctions {', '.join(topo.wheel_centres['front'])} and "
+                           f"{', '.join(topo.wheel_centres['rear'])}) are {wheelbase:.3g} mm apart: no wheelbase "
+                           f"to space the surfaces' samples by")
+    return wheelbase
 
 
 def region_skeleton(outline: RegionOutline, wheelbase_mm: float,

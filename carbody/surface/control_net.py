@@ -378,10 +378,11 @@ def _turn(chain: Chain, s0: float, s1: float) -> float:
 
 
 def refine_turns(outline: RegionOutline, samples: BoundarySamples | None, ribs: np.ndarray,
-                  kinds: list[str], curve: "MonotoneCurve") -> tuple[np.ndarray, list[str]]:
+                 kinds: list[str], curve: "MonotoneCurve") -> tuple[np.ndarray, list[str]]:
     """Add ribs where a face's side turns more than :data:`MAX_SIDE_TURN_DEG` (a quarter of a
     wheel arch in one face bulges into it), at the middle of that side, partner from the
-    correspondence (kept strictly between the neighbouring ribs and inside the region)."""
+    correspondence (kept strictly between the neighbouring ribs, and inside the projected region
+    when there are ``samples``; a region laid out by arc length has none)."""
     ribs, kinds = [tuple(r) for r in ribs], list(kinds)
     for _ in range(4 * len(ribs)):
         worst, where = MAX_SIDE_TURN_DEG, None
