@@ -84,6 +84,7 @@ def test_regions_meet_exactly_and_are_g1_inside(file, topology):
     assert set(report["regions"]) == {r.name for r in topology.regions}
     assert {n for n, _ in body.faces} == {r.name for r in topology.regions}
     for name, r in report["regions"].items():
+        assert r["layout"] == "skeleton" and "layout_note" not in r, name  # the paper's, as before
         assert r["faces"] >= 1
         assert r["inner_g0_mm"] < 1e-6, name
         assert r["inner_g1_deg"] <= G1_TOL_DEG, name  # ribs where the sides are smooth
