@@ -35,6 +35,7 @@ from carbody.errors import SurfaceError
 from carbody.surface.control_net import (MonotoneCurve, RegionNet, patches, refine_turns,
                                          rib_rows, side_turn_deg)
 from carbody.surface.regions import Chain, RegionOutline
+from carbody.topology import load_topology
 
 #: Points of the arc-length correspondence per side curve (for the turn refinement's partners).
 CORRESPONDENCE_PER_CURVE = 16
@@ -81,10 +82,8 @@ def arc_length_ribs(outline: RegionOutline, min_gap_mm: float) -> tuple[np.ndarr
     while k < len(events):
         f, side, j = events[k]
         if k + 1 < len(events) and events[k + 1][1] != side:
-            g = events[k + 1][0]
             # the partner of either junction falls near the other: one rib joins the two
-            if (g - f) * (length_b if side == 0 else length_a) < min_gap_mm or \
-                    (g - f) * (length_a if side == 0 else length_b) < min_gap_mm:
+            if (events[k + 1][0] - f) * min(length_a, length_b) < min_gap_mm:
                 other = events[k + 1][2]
                 inner.append((float(j), float(other)) if side == 0 else (float(other), float(j)))
                 k += 2
@@ -105,13 +104,17 @@ def arc_length_net(outline: RegionOutline, min_gap_mm: float, reason: str = "") 
         min_gap_mm: see :func:`arc_length_ribs`.
         reason: why the paper's layout was not used (kept in the net's ``layout_note``).
     Raises:
-        SurfaceError: a rib of zero length (the two sides touch), naming the region.
+        SurfaceError: a rib of zero length (the two sides touch), naming the region and curves.
     """
     ribs, kinds = arc_length_ribs(outline, min_gap_mm)
     a_pts, b_pts = outline.side_a.points(ribs[:, 0]), outline.side_b.points(ribs[:, 1])
-    width = np.linalg.norm(a_pts - b_pts, axis=1)
-    if not (width[1:-1] > 0).all():
-        raise SurfaceError(f"region {outline.name}: degenerate: its two sides touch")
+    touch = np.flatnonzero(~(np.linalg.norm(a_pts - b_pts, axis=1)[1:-1] > 0)) + 1
+    if len(touch):
+        curves = load_topology().curves
+        a, b = ribs[touch[0]]
+        on_a = curves[outline.side_a.curves[min(int(a), outline.side_a.n - 1)]].name
+        on_b = curves[outline.side_b.curves[min(int(b), outline.side_b.n - 1)]].name
+        raise SurfaceError(f"region {outline.name}: degenerate: its two sides touch (curves {on_a} and {on_b})")
     rows = rib_rows(outline, ribs)
     turn = np.array([max(side_turn_deg(outline.side_a, a), side_turn_deg(outline.side_b, b)) for a, b in ribs])
     faces = patches(outline, ribs, rows, outward_by_loop=True)
