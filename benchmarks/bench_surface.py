@@ -1,15 +1,22 @@
-"""Surfaces: speed per stage (wireframe STEP -> body STEP) and quality, against a plain Coons fill.
+"""Surfaces: speed per stage (wireframe STEP -> body STEP) and quality, against a plain Coons fill;
+and how hard wireframes surface.
 
-Run: ``python benchmarks/bench_surface.py [--templates N] [--markdown]``. For every template:
+Run: ``python benchmarks/bench_surface.py [--templates N] [--hard N]``. For every template:
 read the wireframe STEP, skeletons (Algorithm 1, per region), control nets + DTW, OCCT faces,
 sewing, shell checks, STEP write. Quality per region (faces, inner G1 where the sides are smooth,
 G1 across ribs at side corners, min scaled Jacobian) and across region seams (G0, G1), compared
 with one ``GeomFill_BSplineCurves`` Coons patch per region bounded by the same four sides.
+
+Then ``--hard N`` random hard wireframes (:mod:`carbody.surface.stress`, seeds 0..N-1, the four
+kinds in turn): how many surface with the paper's layout in every region, how many need the
+layout by arc length in some region (:mod:`carbody.surface.arc_layout`; before it, those bodies
+failed), how many fail (a SurfaceError), per kind and per region, and the time per body.
 """
 from __future__ import annotations
 
 import argparse
 import statistics
+from collections import Counter
 import sys
 import time
 from pathlib import Path
@@ -100,9 +107,126 @@ def seam_g1(surfaces_of: dict[str, list], control_points: np.ndarray, n: int = 9
     return out
 
 
+#: What the paper's layout failing on a region did before the layout by arc length, by the start
+#: of its note (``report["regions"][name]["layout_note"]`` after the region's name).
+BEFORE = (("its boundary projected onto its best-fit plane crosses itself", "SurfaceError: crosses itself"),
+          ("its boundary projected onto its best-fit plane encloses no area", "SurfaceError: degenerate"),
+          ("its junction ribs cross", "AssertionError: junction ribs cross"),
+          ("its ribs cross", "AssertionError: junction ribs cross"),
+          ("no rib ends where", "AssertionError: sub-arc spans a junction"))
+
+
+def arc_layout_on_templates(wireframes: list) -> None:
+    """Print, per region over the templates, the paper's layout against the layout by arc length
+    forced on every region: what a region loses where it has to be laid out by arc length."""
+    from carbody.surface.arc_layout import arc_length_net
+    from carbody.surface.body import MIN_GAP_SPACINGS, region_layout, wheelbase_of
+    from carbody.surface.quality import region_report
+    from carbody.surface.regions import region_outlines
+    from carbody.tolerances import NORMALISED_WHEELBASE, SKELETON_SPACING_NORM
+
+    rows: dict[str, list] = {}
+    for cp in wireframes:
+        wb = wheelbase_of(cp)
+        for o in region_outlines(cp):
+            paper, _ = region_layout(o, wb)
+            arc = arc_length_net(o, MIN_GAP_SPACINGS * SKELETON_SPACING_NORM * wb / NORMALISED_WHEELBASE)
+            rows.setdefault(o.name, []).append([region_report(n.faces, n.side_turn_deg) for n in (paper, arc)])
+    print("\nThe layout by arc length forced on every template region, against the paper's (faces "
+          "median; inner G1 max; smallest scaled Jacobian of the surfaces, as above):\n")
+    print("| region | faces, paper | faces, arc | inner G1 °, paper | inner G1 °, arc | Jacobian, paper "
+          "| Jacobian, arc |\n|---|---|---|---|---|---|---|")
+    for name, rs in rows.items():
+        p, a = [r[0] for r in rs], [r[1] for r in rs]
+        print(f"| {name} | {statistics.median(r['faces'] for r in p):.0f} | {statistics.median(r['faces'] for r in a):.0f} | "
+              f"{max(r['inner_g1_deg'] for r in p):.2f} | {max(r['inner_g1_deg'] for r in a):.2f} | "
+              f"{min(r['min_surface_jacobian'] for r in p):.2f} | {min(r['min_surface_jacobian'] for r in a):.2f} |")
+
+
+def hard_wireframes_table(n: int) -> None:
+    """Print the hard-wireframe tables (see module docstring) for seeds 0..n-1."""
+    import os
+    import re
+    from collections import defaultdict
+
+    from carbody.errors import SurfaceError
+    from carbody.library import load_library
+    from carbody.surface import build_body
+    from carbody.surface.stress import KINDS, stress_wireframe
+    from carbody.topology import load_topology
+
+    library = load_library()
+    stress_wireframe(library, 1)  # the displacement field's basis, outside the timings
+    outcome: dict[str, Counter] = defaultdict(Counter)
+    times: dict[str, list[float]] = defaultdict(list)
+    regions: dict[str, Counter] = defaultdict(Counter)
+    before: Counter = Counter()
+    failures: Counter = Counter()
+    for seed in range(n):
+        wf = stress_wireframe(library, seed)
+        kind = wf.name.split()[0]
+        t = time.perf_counter()
+        try:
+            body = build_body(wf)
+        except SurfaceError as exc:
+            result = "failed"
+            failures[re.sub(r"curves? [\w, ]+|junctions .*", "…", str(exc).split(": ", 1)[-1])] += 1
+        else:
+            notes = {name: r["layout_note"].split(": ", 1)[-1] for name, r in body.report["regions"].items()
+                     if r["layout"] != "skeleton"}
+            result = "arc_length" if notes else "paper"
+            for name, note in notes.items():
+                was = next((b for start, b in BEFORE if note.startswith(start)), note)
+                regions[name][was] += 1
+            if notes:
+                # the body failed on the first region (topology order) the paper's layout could not do
+                first = next(name for name in (r.name for r in load_topology().regions) if name in notes)
+                before[next((b for start, b in BEFORE if notes[first].startswith(start)), notes[first])] += 1
+        outcome[kind][result] += 1
+        times[result].append(time.perf_counter() - t)
+        print(f"hard {seed:4d} {kind:12s} {result:10s} {times[result][-1]:5.2f} s", file=sys.stderr)
+
+    cols = ("paper", "arc_length", "failed")
+    print(f"\n### Hard wireframes ({n}, `--hard {n}`)\n")
+    print(f"{os.cpu_count()}-core machine (2 cores, shared with other jobs; load average "
+          f"{os.getloadavg()[0]:.1f} at the end). Seeds 0..{n - 1} of `carbody.surface.stress`, the kinds in "
+          f"turn. *paper*: every region laid out by the paper's skeleton (the only bodies that "
+          f"surfaced before the layout by arc length; their faces are unchanged); *arc length*: some "
+          f"region laid out by arc length (each of these failed before); *failed*: a SurfaceError.\n")
+    print("| kind | wireframes | paper | arc length | failed |\n|---|---|---|---|---|")
+    for kind in KINDS:
+        c = outcome[kind]
+        print(f"| {kind} | {sum(c.values())} | " + " | ".join(str(c[k]) for k in cols) + " |")
+    total = Counter()
+    for c in outcome.values():
+        total.update(c)
+    print(f"| **all** | **{n}** | " + " | ".join(f"**{total[k]}**" for k in cols) + " |")
+    print("\nSeconds per body (build_body with the shell checks, warm process):\n")
+    print("| bodies | count | median | max |\n|---|---|---|---|")
+    for k in cols:
+        if times[k]:
+            print(f"| {k.replace('_', ' ')} | {len(times[k])} | {statistics.median(times[k]):.2f} | {max(times[k]):.2f} |")
+    print("\nBefore, each *arc length* body failed on its first such region (topology order):\n")
+    print("| failure before | bodies |\n|---|---|")
+    for k, v in before.most_common():
+        print(f"| {k} | {v} |")
+    print("\nRegions laid out by arc length, by what the paper's layout did with them:\n")
+    kinds_before = sorted({b for c in regions.values() for b in c})
+    print("| region | " + " | ".join(kinds_before) + " | total |\n|---|" + "---|" * (len(kinds_before) + 1))
+    for r in load_topology().regions:
+        c = regions.get(r.name, Counter())
+        print(f"| {r.name} | " + " | ".join(str(c[k]) for k in kinds_before) + f" | {sum(c.values())} |")
+    if failures:
+        print("\nFailures (SurfaceError, curve names elided):\n")
+        print("| error | bodies |\n|---|---|")
+        for k, v in failures.most_common():
+            print(f"| {k} | {v} |")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--templates", type=int, default=0, help="only the first N templates (0 = all)")
+    ap.add_argument("--hard", type=int, default=60, help="random hard wireframes to surface (0 = none)")
     args = ap.parse_args()
 
     from OCP.BRep import BRep_Tool
@@ -198,6 +322,11 @@ def main() -> int:
           f"**{statistics.median(all_b):.1f}** | **{max(all_b):.1f}** |")
     print(f"\nCoons fill of the 13 regions: {statistics.median(coons_t):.3f} s median (surfaces only, "
           f"no faces or sewing).")
+    layouts = Counter(r["layout"] for rs in quality.values() for r in rs)
+    print(f"\nRegion layouts over the templates: {dict(layouts)}.")
+    arc_layout_on_templates([read_wireframe(templates_dir() / row["file"]).control_points for row in rows])
+    if args.hard:
+        hard_wireframes_table(args.hard)
     return 0
 
 

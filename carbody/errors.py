@@ -45,7 +45,15 @@ class ImageError(CarbodyError):
 
 
 class SurfaceError(CarbodyError):
-    """A region of the wireframe cannot be surfaced (open loop, self-crossing, zero area)."""
+    """A region of the wireframe cannot be surfaced (open loop, zero-length curves, coincident
+    junctions, zero area)."""
+
+
+class RegionLayoutError(SurfaceError):
+    """The paper's layout of one region (best-fit plane projection -> skeleton -> ribs) fails on
+    this wireframe: its outline folds in the plane, or its ribs cross. :func:`carbody.surface.build_body`
+    then lays the region out from its boundary curves alone
+    (:mod:`carbody.surface.arc_layout`); only a caller of the paper's stages on their own sees it."""
 
 
 class OutputError(CarbodyError):

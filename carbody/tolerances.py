@@ -26,8 +26,13 @@ SKELETON_SPACING_NORM = 20.0
 #: A region loop whose consecutive curves are further apart than this (mm) does not close.
 LOOP_CLOSE_TOL_MM = 1e-3
 
-#: A region whose projected area is below this fraction of its perimeter squared is degenerate.
+#: A region whose area (in 3D, or projected onto its best-fit plane) is below this fraction of
+#: its perimeter squared is degenerate.
 DEGENERATE_AREA_REL = 1e-4
+
+#: A curve shorter than this fraction of its region's perimeter, or two junctions of a region's
+#: loop closer than it, is degenerate (the templates' shortest curve is 5e-3 of its perimeter).
+DEGENERATE_LENGTH_REL = 1e-4
 
 #: Sewing tolerance (mm); faces are built to meet exactly, so this only absorbs rounding.
 SEW_TOL_MM = 1e-3

@@ -237,11 +237,30 @@ def test_a_right_rear_photo_the_classifier_took_for_the_left_front_lands_on_its_
     assert rec.view_source == "classifier" and abs(rec.fit.view.azimuth - 210.0) < 5
 
 
-def test_a_stiffer_refit_takes_the_marks_the_fit_kept(library):
+def _paper_layout_only(monkeypatch):
+    """Make ``build_body`` refuse, as it did before the layout by arc length, a wireframe with a
+    region the paper's layout cannot surface, so the stiffer refits still have a case to take."""
+    import carbody.surface
+    from carbody.errors import SurfaceError
+
+    build_body = carbody.surface.build_body
+
+    def paper_only(wireframe, *args, **kwargs):
+        body = build_body(wireframe, *args, **kwargs)
+        notes = [r["layout_note"] for r in body.report["regions"].values() if r["layout"] != "skeleton"]
+        if notes:
+            raise SurfaceError(notes[0])
+        return body
+
+    monkeypatch.setattr(carbody.surface, "build_body", paper_only)
+
+
+def test_a_stiffer_refit_takes_the_marks_the_fit_kept(library, monkeypatch):
     """The pickup left out, from behind, its right lower tail corner clicked 4 px from the left
     one's: the fit leaves that mark out, and when the body has to come from a stiffer fit, that
     fit takes the marks the fit kept (given every mark, the paper's plain mix bent onto it and
-    passed 134 px from the marks on average, and the report said nothing)."""
+    passed 134 px from the marks on average, and the report said nothing). The surface stage now
+    surfaces that fit itself; it is made to refuse it as the paper's layout alone did."""
     import carbody
 
     name = "Ford F-150 SuperCrew 5.5 ft"
@@ -251,6 +270,7 @@ def test_a_stiffer_refit_takes_the_marks_the_fit_kept(library):
     u, v = marks["rear_bottom_corner"]
     marks["rear_bottom_corner_right"] = (u + 3.5, v + 1.0)
     picture = np.full((640, 1000, 3), 200, np.uint8)
+    _paper_layout_only(monkeypatch)
     rec = carbody.reconstruct(picture, marks, view=165, elevation_deg=6.0, library=library.without(name))
     report = rec.report()
     assert report["fit_fallback"] is not None
@@ -259,14 +279,11 @@ def test_a_stiffer_refit_takes_the_marks_the_fit_kept(library):
     assert "left out as misplaced: rear_bottom_corner_right" in rec.summary(report)
 
 
-def test_a_wireframe_that_cannot_be_surfaced_is_refitted_stiffer_and_said_so(library):
+def test_a_wireframe_whose_region_folds_is_surfaced_as_fitted(library):
     """The pickup left out of the library, seen from behind (165°): the default fit bends its cab
-    until the window surround crosses itself, and no surface fills that region. The body then
-    comes from a stiffer fit (the library's span without the local field) blended back toward
-    the fit as far as it surfaces, consistent with the wireframe written, and the report and
-    summary say so; the example needs none."""
+    until the window surround's outline crosses itself in its best-fit plane. That region is
+    laid out by arc length, and the body comes from the fit itself: no stiffer refit."""
     import carbody
-    from carbody.surface import build_body
 
     name = "Ford F-150 SuperCrew 5.5 ft"
     t = library.template_names.index(name)
@@ -275,10 +292,31 @@ def test_a_wireframe_that_cannot_be_surfaced_is_refitted_stiffer_and_said_so(lib
     picture = np.full((640, 1000, 3), 200, np.uint8)
     rec = carbody.reconstruct(picture, marks, view=165, elevation_deg=6.0, library=library.without(name))
     report = rec.report()
+    assert report["fit_fallback"] is None and report["surfaces"]["valid"]
+    window = rec.body.report["regions"]["window_surround"]
+    assert window["layout"] == "arc_length" and "crosses itself" in window["layout_note"]
+
+
+def test_a_wireframe_that_cannot_be_surfaced_is_refitted_stiffer_and_said_so(library, monkeypatch):
+    """The same pickup, with the surface stage made to refuse a region the paper's layout cannot
+    surface (as it did before the layout by arc length): the body then comes from a stiffer fit
+    (the library's span without the local field) blended back toward the fit as far as it
+    surfaces, consistent with the wireframe written, and the report and summary say so; the
+    example needs none."""
+    import carbody
+
+    name = "Ford F-150 SuperCrew 5.5 ft"
+    t = library.template_names.index(name)
+    truth = library.points(library.original(t)) * library.template_wheelbase_mm[t] / 1000.0
+    marks = _marks_seen_from(truth, 165.0)
+    picture = np.full((640, 1000, 3), 200, np.uint8)
+    _paper_layout_only(monkeypatch)
+    rec = carbody.reconstruct(picture, marks, view=165, elevation_deg=6.0, library=library.without(name))
+    report = rec.report()
     fallback = report["fit_fallback"]
     assert fallback["fit"].startswith("the library's span alone") and "crosses itself" in fallback["reason"]
     assert 0.0 < fallback["share_of_fit"] < 1.0  # part of the fit kept
-    assert report["surfaces"]["valid"] and len(build_body(rec.fit.wireframe).faces) == len(rec.body.faces)
+    assert report["surfaces"]["valid"] and len(carbody.surface.build_body(rec.fit.wireframe).faces) == len(rec.body.faces)
     assert "blended with a stiffer fit" in rec.summary(report)
     assert carbody.reconstruct(PHOTO, KEYPOINTS, view=30).fallback is None
 

@@ -64,6 +64,13 @@ def shell_checks(shell) -> dict:
     }
 
 
+def invalid_faces(faces: list) -> list[int]:
+    """Indices of the faces ``BRepCheck_Analyzer`` finds invalid on their own."""
+    from OCP.BRepCheck import BRepCheck_Analyzer
+
+    return [k for k, f in enumerate(faces) if not BRepCheck_Analyzer(f).IsValid()]
+
+
 def points_to_faces_distance(faces: list, points: np.ndarray, margin: float = 1.0) -> np.ndarray:
     """Distance (mm) from each point (n, 3) to the nearest of ``faces`` (projection on the
     surfaces of the faces whose bounding box, grown by ``margin`` mm, holds the point)."""

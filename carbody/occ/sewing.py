@@ -13,8 +13,9 @@ def sew_faces(faces: list, tolerance: float = SEW_TOL_MM):
     Returns:
         (TopoDS_Shell, sewn faces in input order).
     Raises:
-        AssertionError: sewing did not give exactly one shell (a construction bug).
+        SurfaceError: sewing did not give exactly one shell.
     """
+    from carbody.errors import SurfaceError
     from OCP.BRepBuilderAPI import BRepBuilderAPI_Sewing
     from OCP.TopoDS import TopoDS
 
@@ -27,6 +28,6 @@ def sew_faces(faces: list, tolerance: float = SEW_TOL_MM):
     result = sewing.SewedShape()
     shells = sub_shapes(result, "shell")
     if len(shells) != 1:
-        raise AssertionError(f"sewing gave {len(shells)} shells, not one")
+        raise SurfaceError(f"sewing the faces gave {len(shells)} shells, not one")
     sewn = [TopoDS.Face_s(sewing.Modified(f)) if sewing.IsModified(f) else f for f in faces]
     return shells[0], sewn

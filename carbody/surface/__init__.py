@@ -8,7 +8,10 @@ Public API::
 Stages, one module each: :mod:`~carbody.surface.regions` (boundary loops, projection,
 samples), :mod:`~carbody.surface.skeleton` (optimal pairs, Algorithm 1),
 :mod:`~carbody.surface.control_net` (control curves, DTW, quad nets),
-:mod:`~carbody.surface.quality` (G0/G1/Jacobian), :mod:`~carbody.surface.body` (the pipeline).
+:mod:`~carbody.surface.arc_layout` (the ribs of a region whose projected outline folds, from its
+boundary curves alone), :mod:`~carbody.surface.quality` (G0/G1/Jacobian),
+:mod:`~carbody.surface.body` (the pipeline). :mod:`~carbody.surface.stress` makes hard
+wireframes to test it on.
 OCCT lives in :mod:`carbody.occ` (faces, sewing, checks, step_body).
 """
 from carbody.surface.body import Body, build_body, region_patches, skeletons

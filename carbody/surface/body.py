@@ -7,6 +7,11 @@
     body.shape                        # TopoDS_Shell, both halves, sewn
     body.faces                        # [(region name, TopoDS_Face)], every face of body.shape
     body.report                       # quality figures (see build_body)
+
+Each region is laid out the paper's way (projection onto its best-fit plane, skeleton, ribs);
+where that fails on a wireframe (its outline folds in the plane, its ribs cross), by arc length
+from its boundary curves alone (:mod:`carbody.surface.arc_layout`). Either way every face edge
+on a wireframe curve is an exact sub-arc of it, and the report says which layout each region got.
 """
 from __future__ import annotations
 
@@ -17,13 +22,18 @@ from typing import Any
 
 import numpy as np
 
+from carbody.errors import RegionLayoutError, SurfaceError
+from carbody.surface.arc_layout import arc_length_net
 from carbody.surface.control_net import FacePatch, RegionNet, region_net
 from carbody.surface.quality import region_report, seam_quality
-from carbody.surface.regions import (BEGIN, END, BoundarySamples, RegionOutline, boundary_samples,
-                                     region_outlines)
+from carbody.surface.regions import (BEGIN, END, BoundarySamples, RegionOutline, bezier_points,
+                                     boundary_samples, region_outlines)
 from carbody.surface.skeleton import OptimalPair, optimal_pairs, skeleton_line
 from carbody.tolerances import NORMALISED_WHEELBASE, SKELETON_SPACING_NORM
 from carbody.topology import Topology, load_topology
+
+#: A sewn shell's free edges may differ from the body's openings' length by this fraction.
+OPENING_LENGTH_REL = 1e-3
 
 #: A part is not bisected when a side would be thinner than this many sample spacings.
 MIN_HEIGHT_SPACINGS = 2.0
@@ -68,12 +78,21 @@ class Body:
 
 
 def wheelbase_of(control_points: np.ndarray, topology: Topology | None = None) -> float:
-    """Wheelbase (mm) of a wireframe: distance between its two wheel centres in side view."""
+    """Wheelbase (mm) of a wireframe: distance between its two wheel centres in side view.
+
+    Raises:
+        SurfaceError: the wheel centres coincide (or are not numbers).
+    """
     from carbody.wireframe import wheel_centre
 
     topo = topology or load_topology()
     f, r = (wheel_centre(control_points, topo, s) for s in ("front", "rear"))
-    return float(np.hypot(*(r - f)))
+    wheelbase = float(np.hypot(*(r - f)))
+    if not 0 < wheelbase < np.inf:
+        raise SurfaceError(f"the wheel centres (between junctions {', '.join(topo.wheel_centres['front'])} and "
+                           f"{', '.join(topo.wheel_centres['rear'])}) are {wheelbase:.3g} mm apart: no wheelbase "
+                           f"to space the surfaces' samples by")
+    return wheelbase
 
 
 def region_skeleton(outline: RegionOutline, wheelbase_mm: float,
@@ -98,21 +117,44 @@ def skeletons(control_points: np.ndarray, wheelbase_mm: float | None = None,
     return [region_skeleton(o, wb) for o in region_outlines(control_points, topo)]
 
 
+def region_layout(outline: RegionOutline, wheelbase_mm: float,
+                  timings: dict | None = None) -> tuple[RegionNet, RegionSkeleton | None]:
+    """One region's control net: the paper's layout (projection, skeleton, ribs), or, where that
+    fails on this wireframe (:class:`~carbody.errors.RegionLayoutError`: the outline folds in its
+    best-fit plane, the ribs cross), the layout by arc length
+    (:mod:`carbody.surface.arc_layout`), which needs no projection.
+
+    Returns:
+        (net, skeleton); skeleton is None for a region laid out by arc length.
+    Raises:
+        SurfaceError: the region is degenerate in 3D (no layout can surface it).
+    """
+    min_gap_mm = MIN_GAP_SPACINGS * SKELETON_SPACING_NORM * wheelbase_mm / NORMALISED_WHEELBASE
+    timings = {} if timings is None else timings
+    t0 = time.perf_counter()
+    try:
+        sk = region_skeleton(outline, wheelbase_mm)
+        t1 = time.perf_counter()
+        net = region_net(sk.outline, sk.samples, sk.pairs, min_gap_mm)
+    except RegionLayoutError as exc:
+        t1 = time.perf_counter()
+        sk, net = None, arc_length_net(outline, min_gap_mm, reason=str(exc))
+    t2 = time.perf_counter()
+    timings["skeleton_s"] = timings.get("skeleton_s", 0.0) + t1 - t0
+    timings["control_nets_s"] = timings.get("control_nets_s", 0.0) + t2 - t1
+    return net, sk
+
+
 def region_patches(control_points: np.ndarray, topology: Topology | None = None,
-                   timings: dict | None = None) -> tuple[list[RegionNet], list[RegionSkeleton]]:
-    """Control nets and Bezier patches (left half) of every region; numpy only."""
+                   timings: dict | None = None) -> tuple[list[RegionNet], list[RegionSkeleton | None]]:
+    """Control nets and Bezier patches (left half) of every region (:func:`region_layout`);
+    numpy only. The skeleton of a region laid out by arc length is None."""
     topo = topology or load_topology()
     wb = wheelbase_of(control_points, topo)
-    spacing_mm = SKELETON_SPACING_NORM * wb / NORMALISED_WHEELBASE
-    t0 = time.perf_counter()
-    sk = skeletons(control_points, wb, topo)
-    t1 = time.perf_counter()
-    nets = [region_net(s.outline, s.samples, s.pairs, MIN_GAP_SPACINGS * spacing_mm) for s in sk]
-    t2 = time.perf_counter()
-    if timings is not None:
-        timings["skeleton_s"] = t1 - t0
-        timings["control_nets_s"] = t2 - t1
-    return nets, sk
+    timings = {} if timings is None else timings
+    timings.update(skeleton_s=0.0, control_nets_s=0.0)
+    done = [region_layout(o, wb, timings) for o in region_outlines(control_points, topo)]
+    return [n for n, _ in done], [s for _, s in done]
 
 
 def build_body(wireframe, topology: Topology | None = None, check: bool = True) -> Body:
@@ -126,9 +168,13 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
         inner_g1_deg, corner_ribs, corner_g1_deg, min_scaled_jacobian, min_surface_jacobian,
         pairs, ribs}}, ``seams`` {"a|b": {g0_mm, g1_deg}},
         ``shell`` {valid, faces, free_edges, free_loops, max_tolerance_mm, ...} and ``timings_s``.
+        Each region also says its ``layout``: "skeleton" (the paper's) or "arc_length" (where
+        the paper's fails on this wireframe; ``layout_note`` says why).
     Raises:
-        SurfaceError: a region whose loop does not close, whose projected boundary crosses
-            itself, or which encloses no area (the message names the region).
+        SurfaceError: a region whose loop does not close or is degenerate (a curve of zero
+            length, junctions on one spot, no area; the message names the region and curves),
+            or, with ``check``, a sewn shell that is not valid or is open elsewhere than at the
+            body's openings.
     """
     from carbody.occ.faces import bezier_face
     from carbody.occ.sewing import sew_faces
@@ -154,8 +200,11 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
     report: dict[str, Any] = {"regions": {}, "seams": {}}
     for n, s in zip(nets, sk):
         r = region_report(n.faces, n.side_turn_deg)
-        r["pairs"] = len(s.pairs)
+        r["pairs"] = len(s.pairs) if s is not None else 0
         r["ribs"] = len(n.ribs)
+        r["layout"] = n.layout
+        if n.layout_note:
+            r["layout_note"] = n.layout_note
         report["regions"][n.name] = r
     for (a, b), (g0, g1) in sorted(seam_quality(patches_all).items()):
         report["seams"][f"{a}|{b}"] = {"g0_mm": g0, "g1_deg": g1}
@@ -165,9 +214,48 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
         t = time.perf_counter()
         report["shell"] = shell_checks(shell)
         timings["checks_s"] = time.perf_counter() - t
+        refuse_bad_shell(report["shell"], patches_all, sewn, cp, topo)
     report["timings_s"] = timings
     faces = [(f.region, g) for f, g in zip(patches_all, sewn)]
     return Body(wireframe.name, shell, faces, report, patches_all, nets)
+
+
+def opening_length(control_points: np.ndarray, topology: Topology | None = None, samples: int = 400) -> float:
+    """Length (mm, both halves) of the body's openings: the curves only one region uses that are
+    not on the symmetry plane (the lower edge of the body)."""
+    topo = topology or load_topology()
+    used: dict[int, int] = {}
+    for r in topo.regions:
+        for ci, _ in r.loop:
+            used[ci] = used.get(ci, 0) + 1
+    t = np.linspace(0, 1, samples)
+    total = 0.0
+    for c in topo.curves:
+        if used.get(c.index) == 1 and not (c.start in topo.symmetry_junctions and c.end in topo.symmetry_junctions):
+            p = bezier_points(control_points[4 * c.index:4 * c.index + 4], t)
+            total += float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+    return 2 * total
+
+
+def refuse_bad_shell(shell: dict, patches: list[FacePatch], faces: list, control_points: np.ndarray,
+                     topology: Topology | None = None) -> None:
+    """Refuse a sewn shell that is not valid or whose free edges are not the body's openings.
+
+    Args:
+        shell: :func:`carbody.occ.checks.shell_checks` of it.
+        patches, faces: its faces as nets and as sewn OCCT faces, same order.
+    Raises:
+        SurfaceError: naming the regions of the invalid faces, or the free length found.
+    """
+    from carbody.occ.checks import invalid_faces
+
+    if not shell["valid"]:
+        bad = sorted({patches[k].region + ("_right" if patches[k].mirror else "") for k in invalid_faces(faces)})
+        raise SurfaceError(f"the sewn shell is not valid (BRepCheck){': faces of ' + ', '.join(bad) if bad else ''}")
+    expected = opening_length(control_points, topology)
+    if shell["free_open_wires"] or abs(shell["free_length_mm"] - expected) > OPENING_LENGTH_REL * expected:
+        raise SurfaceError(f"the sewn shell is open elsewhere than at the body's openings: "
+                           f"{shell['free_length_mm']:.0f} mm of free edges, the openings are {expected:.0f} mm")
 
 
 def edge_splits(patches: list[FacePatch]) -> dict[tuple[int, bool], np.ndarray]:

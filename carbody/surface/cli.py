@@ -91,6 +91,10 @@ def _surface(args) -> int:
     shell = body.report.get("shell", {})
     print(f"wrote {args.output}: {shell.get('faces', len(body.faces))} faces, one shell, "
           f"valid={shell.get('valid')}, free loops={shell.get('free_closed_loops')}", file=sys.stderr)
+    by_arc = [n for n, r in body.report["regions"].items() if r["layout"] != "skeleton"]
+    if by_arc:
+        print(f"laid out by arc length (their outlines fold in their best-fit planes, or their ribs "
+              f"cross): {', '.join(by_arc)}", file=sys.stderr)
     return 0
 
 

@@ -42,9 +42,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from carbody.errors import RegionLayoutError
 from carbody.surface.regions import (SIDE_A, SIDE_B, BoundarySamples, Chain, RegionOutline,
                                      bezier_derivs, bezier_points, split_bezier)
 from carbody.surface.skeleton import OptimalPair
+from carbody.topology import load_topology
 
 #: An optimal pair cutting a square-ish part can be a diagonal; as a rib it would shear the net.
 #: Pairs whose ends sit at arc-length fractions further apart than this along the two sides stay
@@ -124,11 +126,14 @@ class RegionNet:
     Attributes:
         ribs: (K, 2) float, chain parameters (s_A, s_B) of each rib's ends.
         rows: (K, 4, 3) float, mm, rib control curves from side B to side A.
-        kinds: (K,) str: "end", "skeleton" or "junction".
+        kinds: (K,) str: "end", "skeleton", "junction" or "refine".
         faces: K - 1 patches.
         correspondence: (m, 2) float, DTW correspondence (s_A, s_B) samples.
         side_turn_deg: (K,) float, how sharply the sides turn at each rib's ends (degrees; 0
             inside a cubic): no patch layout can be G1 across a rib ending at a side corner.
+        layout: how the ribs were chosen: "skeleton" (the paper's, from the projected outline)
+            or "arc_length" (:mod:`carbody.surface.arc_layout`, when the paper's fails).
+        layout_note: why the paper's layout was not used ("" when it was).
     """
 
     name: str
@@ -138,6 +143,8 @@ class RegionNet:
     faces: list[FacePatch]
     correspondence: np.ndarray
     side_turn_deg: np.ndarray
+    layout: str = "skeleton"
+    layout_note: str = ""
 
 
 # --------------------------------------------------------------------------- correspondences
@@ -205,7 +212,7 @@ def dtw_correspondence(outline: RegionOutline, samples: BoundarySamples, ribs: n
     return np.array(sorted(set(out)))
 
 
-class _MonotoneCurve:
+class MonotoneCurve:
     """The correspondence as one monotone polyline in (s_A, s_B): partners of A points and of
     B points read off the same curve never cross each other."""
 
@@ -298,7 +305,7 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
     sb_t, lb_t = outline.side_b.arc_table()
     arc_a = lambda s: np.interp(s, sa_t, la_t)  # noqa: E731
     arc_b = lambda s: np.interp(s, sb_t, lb_t)  # noqa: E731
-    curve = _MonotoneCurve(correspondence)
+    curve = MonotoneCurve(correspondence)
 
     on_a: dict[int, float] = {}  # A junction -> partner on B
     free_b: list[tuple[float, int]] = []
@@ -330,7 +337,7 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
     if samples is not None and len(junc):
         junc = _keep_inside(outline, samples, junc)
     if len(junc) and (np.any(np.diff(junc[:, 0]) <= 0) or np.any(np.diff(junc[:, 1]) <= 0)):
-        raise AssertionError(f"{outline.name}: junction ribs cross or share an end: {junc.tolist()}")
+        raise RegionLayoutError(f"region {outline.name}: its junction ribs cross or share an end")
 
     fixed = np.vstack([[0.0, 0.0], junc, [na, nb]])
     keep = []
@@ -359,7 +366,7 @@ def net_ribs(outline: RegionOutline, skeleton: np.ndarray, correspondence: np.nd
     order = np.argsort(inner[:, 0], kind="stable")
     ribs = np.vstack([[0.0, 0.0], inner[order], [na, nb]])
     kinds = ["end"] + [kinds[i] for i in order] + ["end"]
-    return _refine_turns(outline, samples, ribs, kinds, curve)
+    return refine_turns(outline, samples, ribs, kinds, curve)
 
 
 def _turn(chain: Chain, s0: float, s1: float) -> float:
@@ -370,11 +377,12 @@ def _turn(chain: Chain, s0: float, s1: float) -> float:
     return float(np.degrees(np.arccos(np.clip((d[:-1] * d[1:]).sum(axis=1), -1, 1))).sum())
 
 
-def _refine_turns(outline: RegionOutline, samples: BoundarySamples | None, ribs: np.ndarray,
-                  kinds: list[str], curve: "_MonotoneCurve") -> tuple[np.ndarray, list[str]]:
+def refine_turns(outline: RegionOutline, samples: BoundarySamples | None, ribs: np.ndarray,
+                 kinds: list[str], curve: "MonotoneCurve") -> tuple[np.ndarray, list[str]]:
     """Add ribs where a face's side turns more than :data:`MAX_SIDE_TURN_DEG` (a quarter of a
     wheel arch in one face bulges into it), at the middle of that side, partner from the
-    correspondence (kept strictly between the neighbouring ribs and inside the region)."""
+    correspondence (kept strictly between the neighbouring ribs, and inside the projected region
+    when there are ``samples``; a region laid out by arc length has none)."""
     ribs, kinds = [tuple(r) for r in ribs], list(kinds)
     for _ in range(4 * len(ribs)):
         worst, where = MAX_SIDE_TURN_DEG, None
@@ -519,8 +527,15 @@ def _side_ref(chain: Chain, piece: int, t0: float, t1: float) -> SideRef:
     return SideRef(c, 1 - t0, 1 - t1) if rev else SideRef(c, t0, t1)
 
 
-def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray) -> list[FacePatch]:
-    """Bicubic Bezier patches between consecutive ribs (G1 across inner ribs; see module doc)."""
+def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray,
+            outward_by_loop: bool = False) -> list[FacePatch]:
+    """Bicubic Bezier patches between consecutive ribs (G1 across inner ribs; see module doc).
+
+    Args:
+        outward_by_loop: orient the faces (S_u x S_v out of the body) by the loop's direction
+            instead of by the middle face's normal: the same on any region whose faces do not
+            fold, and still right on one whose faces do.
+    """
     K = len(ribs)
     mids = np.array([bezier_points(r, [0.5])[0] for r in rows])
     subs = [(_sub_arc(outline.side_b, ribs[k, 1], ribs[k + 1, 1]), _sub_arc(outline.side_a, ribs[k, 0], ribs[k + 1, 0]))
@@ -589,9 +604,13 @@ def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray) -> list[
             sides["v1"] = SideRef(c, 1.0, 0.0) if rev else SideRef(c, 0.0, 1.0)
         faces.append(FacePatch(outline.name, k, net, sides))
     # make S_u x S_v point outwards (u reversed if needed)
-    mid = faces[len(faces) // 2].net
-    n = np.cross(mid[3, 1] + mid[3, 2] - mid[0, 1] - mid[0, 2], mid[1, 3] + mid[2, 3] - mid[1, 0] - mid[2, 0])
-    if n @ outline.outward < 0:
+    if outward_by_loop:
+        inward = not faces_follow_loop(outline)
+    else:
+        mid = faces[len(faces) // 2].net
+        n = np.cross(mid[3, 1] + mid[3, 2] - mid[0, 1] - mid[0, 2], mid[1, 3] + mid[2, 3] - mid[1, 0] - mid[2, 0])
+        inward = n @ outline.outward < 0
+    if inward:
         for f in faces:
             f.net = f.net[::-1].copy()
             s = f.sides
@@ -600,9 +619,41 @@ def patches(outline: RegionOutline, ribs: np.ndarray, rows: np.ndarray) -> list[
     return faces
 
 
+def faces_follow_loop(outline: RegionOutline) -> bool:
+    """True when a face's (u, v) boundary, walked counter-clockwise (begin curve B -> A, side A,
+    end curve, side B), runs round the region as its loop does, counter-clockwise seen from
+    outside: S_u x S_v then points out of the body."""
+    c, rev = outline.begin_curve
+    return next(r for ci, r in outline.loop if ci == c) == rev
+
+
+def check_ribs(outline: RegionOutline, ribs: np.ndarray) -> None:
+    """Ribs must run from (0, 0) to (n_A, n_B), strictly increasing on both sides, with a rib at
+    every junction of either side (each face side then lies on one wireframe cubic).
+
+    Raises:
+        RegionLayoutError: naming the region and the side curve a face would span past its end.
+    """
+    na, nb = outline.side_a.n, outline.side_b.n
+    ok = len(ribs) >= 2 and np.allclose(ribs[0], 0) and np.allclose(ribs[-1], (na, nb))
+    ok = ok and bool(np.all(np.diff(ribs[:, 0]) > 0) and np.all(np.diff(ribs[:, 1]) > 0))
+    if not ok:
+        raise RegionLayoutError(f"region {outline.name}: its ribs cross or share an end")
+    curves = load_topology().curves
+    for chain, col, label in ((outline.side_a, 0, "A"), (outline.side_b, 1, "B")):
+        missing = [j for j in range(1, chain.n) if not np.any(np.abs(ribs[:, col] - j) < 1e-9)]
+        if missing:
+            raise RegionLayoutError(f"region {outline.name}: no rib ends where side {label}'s curve "
+                                    f"{curves[chain.curves[missing[0] - 1]].name} ends")
+
+
 def region_net(outline: RegionOutline, samples: BoundarySamples, pairs: list[OptimalPair],
                min_gap_mm: float) -> RegionNet:
-    """Ribs, control curves and faces of one region from its skeleton's optimal pairs."""
+    """Ribs, control curves and faces of one region from its skeleton's optimal pairs.
+
+    Raises:
+        RegionLayoutError: the ribs cross or miss a junction of a side (:func:`check_ribs`).
+    """
     na, nb = outline.side_a.n, outline.side_b.n
     skel = skeleton_ribs(samples, pairs)
     if len(skel):
@@ -613,6 +664,7 @@ def region_net(outline: RegionOutline, samples: BoundarySamples, pairs: list[Opt
     skel = _monotone(skel, na, nb)
     corr = dtw_correspondence(outline, samples, skel)
     ribs, kinds = net_ribs(outline, skel, corr, min_gap_mm, samples)
+    check_ribs(outline, ribs)
     rows = rib_rows(outline, ribs)
     turn = np.array([max(side_turn_deg(outline.side_a, a), side_turn_deg(outline.side_b, b)) for a, b in ribs])
     return RegionNet(outline.name, ribs, rows, kinds, patches(outline, ribs, rows), corr, turn)

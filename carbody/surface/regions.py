@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from carbody.errors import SurfaceError
-from carbody.tolerances import (DEGENERATE_AREA_REL, LOOP_CLOSE_TOL_MM, NORMALISED_WHEELBASE,
-                                SKELETON_SPACING_NORM)
+from carbody.errors import RegionLayoutError, SurfaceError
+from carbody.tolerances import (DEGENERATE_AREA_REL, DEGENERATE_LENGTH_REL, LOOP_CLOSE_TOL_MM,
+                                NORMALISED_WHEELBASE, SKELETON_SPACING_NORM)
 from carbody.topology import POINTS_PER_CURVE, Region, Topology, load_topology
 
 #: Side labels of a boundary sample.
@@ -190,11 +190,23 @@ def region_outline(control_points: np.ndarray, region: Region, outward_sign: flo
         outward_sign: +1 when the consistently oriented loops run counter-clockwise seen from
             outside the body, else -1 (see :func:`outward_sign`).
     Raises:
-        SurfaceError: the loop does not close.
+        SurfaceError: the loop does not close, or is degenerate (:func:`check_region_geometry`).
     """
     topo = topology or load_topology()
     loop = list(region.loop)
     n = len(loop)
+    for ci, _ in loop:
+        poles = _poles(control_points, ci, False)
+        if not np.isfinite(poles).all():
+            raise SurfaceError(f"region {region.name}: curve {topo.curves[ci].name} has a control "
+                               f"point that is not a finite number")
+        c = topo.curves[ci]
+        off = float(np.abs(poles[:, 0]).max())
+        # a curve between two junctions of the symmetry plane is its own mirror: off the plane,
+        # the body's two halves would not meet along it
+        if c.start in topo.symmetry_junctions and c.end in topo.symmetry_junctions and not off <= LOOP_CLOSE_TOL_MM:
+            raise SurfaceError(f"region {region.name}: curve {c.name} joins two junctions of the "
+                               f"symmetry plane but leaves it (by {off:.3g} mm)")
     for k in range(n):
         ci, rev = loop[k]
         cj, rev2 = loop[(k + 1) % n]
@@ -228,8 +240,70 @@ def region_outline(control_points: np.ndarray, region: Region, outward_sign: flo
     outward = normal / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
     if outward_sign < 0:
         eff = [(c, not r) for c, r in eff[::-1]]
-    return RegionOutline(region.name, _poles(control_points, *begin), _poles(control_points, *end),
-                         begin, end, chain(side_a), chain(side_b), outward, tuple(eff))
+    outline = RegionOutline(region.name, _poles(control_points, *begin), _poles(control_points, *end),
+                            begin, end, chain(side_a), chain(side_b), outward, tuple(eff))
+    check_region_geometry(outline, topo)
+    return outline
+
+
+def _arc_length(poles: np.ndarray) -> float:
+    p = bezier_points(poles, np.linspace(0, 1, DENSE + 1))
+    return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+
+
+def strip_area(outline: RegionOutline, n: int = 4 * DENSE) -> float:
+    """Area (mm²) of the ruled strip joining the two sides at equal arc-length fractions: what
+    the region covers in 3D, whatever plane it would be seen in."""
+    def at_fractions(chain: Chain) -> np.ndarray:
+        s, arc = chain.arc_table()
+        return chain.points(np.interp(np.linspace(0, arc[-1], n + 1), arc, s))
+
+    a, b = at_fractions(outline.side_a), at_fractions(outline.side_b)
+    tri1 = np.cross(a[1:] - b[:-1], a[:-1] - b[:-1])
+    tri2 = np.cross(b[1:] - b[:-1], a[1:] - b[:-1])
+    return 0.5 * float(np.linalg.norm(tri1, axis=1).sum() + np.linalg.norm(tri2, axis=1).sum())
+
+
+def check_region_geometry(outline: RegionOutline, topology: Topology | None = None) -> None:
+    """Refuse a region that no layout can surface: a curve of (near) zero length, two junctions
+    of its loop on one spot, or a loop that covers no area in 3D (``DEGENERATE_LENGTH_REL``,
+    ``DEGENERATE_AREA_REL`` of the region's perimeter).
+
+    Raises:
+        SurfaceError: one line naming the region and the curves (or junctions).
+    """
+    topo = topology or load_topology()
+    curves = topo.curves
+
+    def ends(c: int, rev: bool) -> tuple[str, str]:  # (start, end) junction in poles' direction
+        return (curves[c].end, curves[c].start) if rev else (curves[c].start, curves[c].end)
+
+    # the loop walked begin (B -> A), side A, end (A -> B), side B (end -> begin): (name, poles)
+    walk = [(outline.begin_curve[0], ends(*outline.begin_curve)[0], outline.begin)]
+    walk += [(c, ends(c, r)[0], p) for c, r, p in zip(outline.side_a.curves, outline.side_a.reversed,
+                                                     outline.side_a.poles)]
+    walk.append((outline.end_curve[0], ends(*outline.end_curve)[1], outline.end[::-1]))
+    walk += [(c, ends(c, r)[1], p[::-1]) for c, r, p in zip(outline.side_b.curves[::-1], outline.side_b.reversed[::-1],
+                                                           outline.side_b.poles[::-1])]
+    names = [curves[c].name for c, _, _ in walk]
+    lengths = np.array([_arc_length(p) for _, _, p in walk])
+    perimeter = float(lengths.sum())
+    tol = DEGENERATE_LENGTH_REL * perimeter
+    short = [n for n, L in zip(names, lengths) if not L > tol]
+    if short or not perimeter > 0:
+        raise SurfaceError(f"region {outline.name}: degenerate: curve{'s' if len(short) > 1 else ''} "
+                           f"{', '.join(short or names)} of zero length")
+    starts = np.array([p[0] for _, _, p in walk])
+    close = np.triu(np.linalg.norm(starts[:, None] - starts[None], axis=-1) <= tol, k=1)
+    if close.any():
+        i, j = np.argwhere(close)[0]
+        raise SurfaceError(f"region {outline.name}: degenerate: junctions {walk[i][1]} and "
+                           f"{walk[j][1]} coincide (curves {names[i]}, {names[j]} start there)")
+    side_a = ", ".join(curves[c].name for c in outline.side_a.curves)
+    side_b = ", ".join(curves[c].name for c in outline.side_b.curves)
+    if not strip_area(outline) > DEGENERATE_AREA_REL * perimeter**2:
+        raise SurfaceError(f"region {outline.name}: degenerate: its sides ({side_a}) and ({side_b}) "
+                           f"enclose no area")
 
 
 def outward_sign(control_points: np.ndarray, topology: Topology | None = None) -> float:
@@ -311,7 +385,8 @@ def boundary_samples(outline: RegionOutline, wheelbase_mm: float,
     units and orders the samples clockwise seen from outside.
 
     Raises:
-        SurfaceError: a zero-area region, or a projected boundary that crosses itself.
+        RegionLayoutError: the projected boundary crosses itself or encloses no area (the region
+            itself is checked by :func:`check_region_geometry`).
     """
     scale = NORMALISED_WHEELBASE / wheelbase_mm
     spacing = spacing_norm / scale
@@ -343,10 +418,11 @@ def boundary_samples(outline: RegionOutline, wheelbase_mm: float,
     perimeter = shapely.length(ring)
     area = shapely.area(shapely.polygons(ring))
     if not (perimeter > 0 and area > DEGENERATE_AREA_REL * perimeter**2):
-        raise SurfaceError(f"region {outline.name}: degenerate (its boundary encloses no area)")
+        raise RegionLayoutError(f"region {outline.name}: its boundary projected onto its best-fit "
+                                f"plane encloses no area")
     if not shapely.is_simple(ring):
-        raise SurfaceError(f"region {outline.name}: its boundary projected onto its best-fit plane "
-                           f"crosses itself")
+        raise RegionLayoutError(f"region {outline.name}: its boundary projected onto its best-fit "
+                                f"plane crosses itself")
     # clockwise seen from outside (normal towards the viewer) = negative signed area
     x, y = d2[:, 0], d2[:, 1]
     signed = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
