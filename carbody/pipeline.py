@@ -11,7 +11,6 @@ The CLI ``carbody reconstruct`` is a thin layer over :func:`reconstruct` and
 """
 from __future__ import annotations
 
-import functools
 import json
 import os
 import shutil
@@ -250,14 +249,6 @@ def write_assembly(path: Path, result: Reconstruction) -> Path:
     return atomic_write(path, lambda tmp: assy.export(tmp, "STEP"))
 
 
-@functools.cache
-def default_library():
-    """The shipped library, loaded once per process (the fit keeps its shape model per library)."""
-    from carbody.library import load_library
-
-    return load_library()
-
-
 def _read_inputs(image, keypoints):
     """(RGB image, its path or None, annotation) with sizes checked against each other."""
     from carbody.fit.keypoints_io import Annotation, check_image_size, read_keypoints
@@ -321,6 +312,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     """
     from carbody.camera import View, read_view
     from carbody.fit import FitOptions, ViewPrior, fit_wireframe
+    from carbody.library import default_library
     from carbody.fit.focal import focal_length_px
     from carbody.surface import build_body
 
