@@ -19,10 +19,9 @@ system-deps:
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq freecad-python3 >/dev/null; }
 
 # Two test workers on two cores: one BLAS/OpenMP thread each (more oversubscribe the cores and
-# make the numerical tests several times slower). --dist loadgroup keeps the tests that start
-# Dask workers on one test worker, sharing one cluster (tests/test_batch.py).
+# make the numerical tests several times slower).
 test: $(STAMP) system-deps
-	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 --dist loadgroup --durations=15
+	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 --durations=15
 
 test-slow: $(STAMP) system-deps
 	$(BIN)/python -m pytest -q -m slow

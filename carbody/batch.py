@@ -33,7 +33,6 @@ import os
 import re
 import shutil
 import sys
-import tempfile
 import time
 import uuid
 from dataclasses import dataclass, field
@@ -74,7 +73,8 @@ SUMMARY_FILE = "batch.json"
 #: Held (``flock``) while a batch writes into OUT_DIR: one batch per folder at a time.
 LOCK_FILE = ".carbody-batch.lock"
 
-#: The summary file is rewritten at most this often while the batch runs, seconds (and at its end).
+#: The summary file is rewritten at most this often while the batch runs, seconds (and at its
+#: end; a summary that takes long to write, less often).
 SUMMARY_EVERY_S = 5.0
 
 #: Hidden folders a task works in beside OUT_DIR/NAME (a killed run leaves them; the next removes them).
@@ -322,7 +322,9 @@ def reconstruct_photo(photo: Photo, out_dir: str | Path) -> dict:
         result = reconstruct(photo.image, photo.keypoints, photo.view, photo.wheelbase_mm, name=photo.name,
                              elevation_deg=photo.elevation_deg, camera_distance_mm=photo.camera_distance_mm,
                              library=library_for(photo.exclude_templates))
-        work = Path(tempfile.mkdtemp(prefix=f".{photo.name}.partial-", dir=out))
+        # os.mkdir, not mkdtemp: the folder gets the umask's mode, as `carbody reconstruct`'s does
+        work = out / f".{photo.name}.partial-{uuid.uuid4().hex[:12]}"
+        os.mkdir(work)
         result.write(work)
         (work / JOB_FILE).write_text(json.dumps(
             {"row": photo.job(), "where": photo.where, "worker": row["worker"],
@@ -403,6 +405,7 @@ class BatchSummary:
             every photo up to date).
         workers: how many workers the cluster had.
         wall_s: the batch's wall time, seconds.
+        start_s: of which starting the cluster (or connecting to it) and warming its workers.
         warm_up_s: per worker, the seconds each part of :func:`carbody.cluster.warm_up` took.
     """
 
@@ -412,6 +415,7 @@ class BatchSummary:
     cluster: str = "none"
     workers: int = 0
     wall_s: float = 0.0
+    start_s: float = 0.0
     warm_up_s: dict[str, dict[str, float]] = field(default_factory=dict)
     started: str = field(default_factory=lambda: time.strftime("%Y-%m-%dT%H:%M:%S%z"))
 
@@ -426,8 +430,9 @@ class BatchSummary:
 
     @property
     def photos_per_minute(self) -> float | None:
-        done = self.counts["done"]
-        return 60.0 * done / self.wall_s if done and self.wall_s > 0 else None
+        """Photos done per minute once the workers were warm (``wall_s − start_s``)."""
+        done, seconds = self.counts["done"], self.wall_s - self.start_s
+        return 60.0 * done / seconds if done and seconds > 0 else None
 
     @property
     def ok(self) -> bool:
@@ -437,7 +442,7 @@ class BatchSummary:
     def as_dict(self) -> dict:
         return {"manifest": self.manifest, "out_dir": str(self.out_dir), "started": self.started,
                 "cluster": self.cluster, "workers": self.workers, "warm_up_s": self.warm_up_s,
-                "wall_s": round(self.wall_s, 3),
+                "wall_s": round(self.wall_s, 3), "start_s": round(self.start_s, 3),
                 "photos_per_minute": None if self.photos_per_minute is None else round(self.photos_per_minute, 2),
                 "counts": self.counts, "photos": self.photos}
 
@@ -465,7 +470,8 @@ class BatchSummary:
         rate = f", {self.photos_per_minute:.1f} photos/min" if self.photos_per_minute else ""
         where = f" on {self.cluster}" if self.cluster != "none" else ""
         lines.append(f"{len(self.photos)} photos: {c['done']} done, {c['skipped']} up to date, {c['refused']} refused, "
-                     f"{c['failed']} failed; {self.wall_s:.1f} s{where}{rate}")
+                     f"{c['failed']} failed; {self.wall_s:.1f} s{where}"
+                     + (f" ({self.start_s:.1f} s of it starting them)" if self.start_s else "") + rate)
         return "\n".join(lines)
 
 
@@ -513,9 +519,12 @@ def run_batch(manifest: str | Path, out_dir: str | Path, scheduler: str | None =
                 _run_on_cluster(summary, photos, todo, out, scheduler, workers, client, progress, on_photo, start)
         finally:
             for i in todo:
-                if summary.photos[i] is None:  # stopped (Ctrl-C) before it finished
+                if summary.photos[i] is None:  # stopped (Ctrl-C) before its result came back
+                    whole = up_to_date(photos[i], out / photos[i].name)
                     summary.photos[i] = {"name": photos[i].name, "image": str(photos[i].image),
-                                         "status": "not run", "reason": "the batch stopped first", "seconds": None}
+                                         "status": "done" if whole else "not run",
+                                         "reason": "finished as the batch stopped" if whole else "the batch stopped first",
+                                         "seconds": None}
             summary.wall_s = time.perf_counter() - start
             summary.write()
     return summary
@@ -533,18 +542,19 @@ def _run_on_cluster(summary: BatchSummary, photos: list[Photo], todo: list[int],
     with contextlib.ExitStack() as stack:
         if client is None:
             client = stack.enter_context(connect(scheduler, workers))
-            summary.cluster = scheduler or f"local, {len(client.scheduler_info()['workers'])} workers"
+            summary.cluster = scheduler or f"local, {len(client.nthreads())} workers"
         else:
             client.register_plugin(CarbodyWorker(WARM_PARTS))
             summary.cluster = str(client.scheduler.address)
-        summary.workers = len(client.scheduler_info()["workers"])
+        summary.workers = len(client.nthreads())
+        summary.start_s = time.perf_counter() - start
         summary.warm_up_s = warm_up_seconds(client)
         check_shared_folder(client, out)
         futures = {client.submit(reconstruct_photo, photos[i], str(out), key=f"photo-{i}-{uuid.uuid4().hex[:8]}",
                                  pure=False, retries=0): i for i in todo}
         bar = stack.enter_context(tqdm(total=len(photos), initial=len(photos) - len(todo), desc="batch",
                                        unit="photo", file=sys.stderr, disable=None if progress else True))
-        written = time.perf_counter()
+        next_write = time.perf_counter() + SUMMARY_EVERY_S
         try:
             for future in as_completed(futures):
                 i = futures[future]
@@ -559,10 +569,12 @@ def _run_on_cluster(summary: BatchSummary, photos: list[Photo], todo: list[int],
                 bar.set_postfix_str(f"{c['refused'] + c['failed']} refused" if c["refused"] + c["failed"] else "")
                 if on_photo:
                     on_photo(row)
-                if time.perf_counter() - written > SUMMARY_EVERY_S:
-                    summary.wall_s = time.perf_counter() - start
+                if time.perf_counter() > next_write:
+                    # a huge batch's summary takes a while to write: at most 5 % of the time on it
+                    began = summary.wall_s = time.perf_counter() - start
                     summary.write()
-                    written = time.perf_counter()
+                    took = time.perf_counter() - start - began
+                    next_write = time.perf_counter() + max(SUMMARY_EVERY_S, 20.0 * took)
         except BaseException:
             client.cancel(list(futures))
             raise

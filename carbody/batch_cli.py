@@ -34,9 +34,15 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 
 def run_batch_command(args: argparse.Namespace, out=sys.stdout) -> int:
-    from carbody.batch import run_batch
+    from carbody.batch import SUMMARY_FILE, run_batch
 
-    summary = run_batch(args.manifest, args.out, args.scheduler, args.workers, force=args.force)
+    try:
+        summary = run_batch(args.manifest, args.out, args.scheduler, args.workers, force=args.force)
+    except KeyboardInterrupt:
+        # batch.json already says which photos were done; their folders are whole
+        print(f"carbody batch: stopped; {args.out / SUMMARY_FILE} lists what was done; run the same "
+              f"command again to finish the rest", file=sys.stderr)
+        return 130  # 128 + SIGINT
     print(summary.table(), file=out)
     print(f"summary in {summary.out_dir / 'batch.json'}", file=out)
     return 0 if summary.ok else 1

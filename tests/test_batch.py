@@ -16,14 +16,13 @@ from tests.conftest import REPO
 
 EXAMPLES = REPO / "examples"
 
-# Both tests that start Dask workers share one cluster (``make test`` runs ``--dist loadgroup``).
-pytestmark = pytest.mark.xdist_group("dask")
 
-
-@pytest.fixture(scope="module")
+@pytest.fixture
 def cluster(library):
     """A local Dask cluster of 2 worker processes, one thread each (``library`` first fills the
-    session's library cache, which the workers inherit through the environment)."""
+    session's library cache, which the workers inherit through the environment). One test uses
+    it: pytest-xdist would start one per test process otherwise (its ``loadgroup`` does not
+    group on pytest 9)."""
     from distributed import LocalCluster
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
@@ -40,7 +39,16 @@ def photo_folder(folder, names=("a", "b", "c")):
     return folder
 
 
-def test_a_batch_of_four_photos_with_a_broken_one_finishes_and_resumes(cluster, tmp_path):
+def test_on_two_workers_a_broken_photo_never_stops_the_batch_and_the_data_set_renders_the_same_bits(
+        cluster, tmp_path):
+    """Both on one cluster of 2 worker processes: a batch of 4 photos, one broken, run, run again
+    and resumed (:func:`check_batch_finishes_and_resumes`); the classifier's data set rendered
+    in this process, on 1 worker and on 2 (:func:`check_dataset_renders_the_same_bits`)."""
+    check_batch_finishes_and_resumes(cluster, tmp_path / "batch")
+    check_dataset_renders_the_same_bits(cluster, tmp_path / "dataset")
+
+
+def check_batch_finishes_and_resumes(cluster, tmp_path):
     from carbody.batch import SUMMARY_FILE, run_batch
 
     photos = photo_folder(tmp_path / "photos")
@@ -70,6 +78,9 @@ def test_a_batch_of_four_photos_with_a_broken_one_finishes_and_resumes(cluster, 
     b_report = json.loads((out / "b" / "report.json").read_text())
     assert b_report["view"]["source"] == "given" and b_report["fit"]["wheelbase_from"] == "told"
     assert not (out / "broken").exists()
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (out / "a").stat().st_mode & 0o777 == 0o777 & ~umask      # as `carbody reconstruct` makes it
     assert sorted(p.name for p in out.iterdir()) == [".carbody-batch.lock", "a", "b", "batch.json", "c"]
 
     # Again: nothing to do, no cluster needed; the refused photo is tried again (and refused).
@@ -92,7 +103,7 @@ def test_a_batch_of_four_photos_with_a_broken_one_finishes_and_resumes(cluster, 
     assert not (out / ".b.partial-x1y2z3").exists() and (out / "b" / "report.json").is_file()
 
 
-def test_the_data_set_renders_the_same_bits_on_one_and_two_workers(cluster, tmp_path):
+def check_dataset_renders_the_same_bits(cluster, tmp_path):
     from distributed import Client
 
     from carbody.cluster import connect
@@ -103,7 +114,7 @@ def test_the_data_set_renders_the_same_bits_on_one_and_two_workers(cluster, tmp_
     with connect(workers=1, warm=("kernel",)) as one:
         render_dataset(tmp_path / "one", **kw, client=one)
     with Client(cluster) as two:
-        assert len(two.scheduler_info()["workers"]) == 2
+        assert len(two.nthreads()) == 2
         render_dataset(tmp_path / "two", **kw, client=two)
     rows = read_manifest(tmp_path / "here")
     assert len(rows) == 24 and len({r["body"] for r in rows}) == 2
