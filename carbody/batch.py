@@ -358,7 +358,7 @@ def publish(work: Path, final: Path) -> None:
 
 
 def library_for(excluded: Iterable[str]):
-    """The library a row asks for: None (the shipped one, :func:`carbody.pipeline.default_library`)
+    """The library a row asks for: None (the shipped one, :func:`carbody.library.default_library`)
     or the shipped one without ``excluded``, built once per process for a few such sets."""
     excluded = tuple(sorted(excluded))
     return _library_without(excluded) if excluded else None

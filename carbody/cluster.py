@@ -12,7 +12,7 @@ Every worker runs one task at a time (one thread: the work is numpy, OCCT and VT
 worth each) and gets :class:`CarbodyWorker`, which pins one BLAS/OpenMP/torch thread (two
 workers on two cores would otherwise oversubscribe them) and loads, once, what every photo
 needs into the module-level caches the public API already reads
-(:func:`carbody.pipeline.default_library`, :func:`carbody.view.predict.load_classifier`), so a
+(:func:`carbody.library.default_library`, :func:`carbody.view.predict.load_classifier`), so a
 photo's task stays a plain call of :func:`carbody.reconstruct`.
 
 The workers read the inputs and write the outputs themselves, so on a cluster of several
@@ -40,8 +40,10 @@ from carbody.errors import BatchError
 #: kernel (OCP for the surfaces and STEP, VTK for the pictures), whose imports take seconds.
 WARM_PARTS = ("library", "classifier", "kernel")
 
-#: How long to wait for an existing cluster's scheduler, and for its first worker, seconds.
-CONNECT_TIMEOUT_S = 30
+#: How long to wait for a running cluster's scheduler to answer, and for its first worker to
+#: join, seconds.
+CONNECT_TIMEOUT_S = 10
+FIRST_WORKER_TIMEOUT_S = 60
 
 # The thread limit threadpoolctl keeps for this process (set by warm_up).
 _THREAD_LIMITS = None
@@ -66,7 +68,7 @@ def warm_up(parts: tuple[str, ...] = WARM_PARTS) -> dict[str, float]:
     for part in parts:
         start = time.perf_counter()
         if part == "library":
-            from carbody.pipeline import default_library
+            from carbody.library import default_library
 
             default_library()
         elif part == "classifier":
@@ -134,10 +136,10 @@ def connect(scheduler: str | None = None, workers: int | None = None,
             except (OSError, asyncio.TimeoutError, TimeoutError, ValueError) as exc:
                 raise BatchError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
             try:
-                client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
+                client.wait_for_workers(1, timeout=FIRST_WORKER_TIMEOUT_S)
             except (asyncio.TimeoutError, TimeoutError):
                 raise BatchError(f"the Dask cluster at {scheduler} has no workers "
-                                 f"(none joined in {CONNECT_TIMEOUT_S} s)") from None
+                                 f"(none joined in {FIRST_WORKER_TIMEOUT_S} s)") from None
         else:
             # Worker processes are spawned: they inherit this process's environment and
             # sys.path, so a source checkout on PYTHONPATH works as an installed package does.
