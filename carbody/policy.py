@@ -93,6 +93,17 @@ class FitPolicy:
     max_rejected_fraction: float = 0.25
     min_kept: int = 6
 
+    #: The marks' noise is read off them (the factor of the best evidence at the view found) among
+    #: these multiples of λ's standard deviation (≈ 1 % of the marks' spread): a person's clicks
+    #: on a real photo are 1–1.5 % of the car's length off, several times λ's, and at λ's noise
+    #: the fit bends the car far outside the library to follow them.
+    noise_factors: tuple[float, ...] = (1.0, 1.5, 2.2, 3.3, 5.0)
+
+    #: … and the joint field's amplitude (the library's local freedom: features moved along the
+    #: car) among these multiples of JOINT_FIELD_AMPLITUDE: a car unlike every template (a pickup
+    #: among saloons) misses its marks in a pattern the field follows, which is no click noise.
+    field_scales: tuple[float, ...] = (1.0, 2.0, 3.0)
+
     #: The scan's hypotheses leave out at most this many marks (a whole solve each): enough that
     #: one wild mark does not push the right view out of the best few.
     scan_rejections: int = 1

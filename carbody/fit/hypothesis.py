@@ -113,15 +113,24 @@ class Scorer:
         prior: the view prior.
         image_size: (width, height) px: a misplaced click lands anywhere on it (default: twice
             the marks' extent).
+        noise_factor: the marks' noise as a multiple of λ's (its standard deviation): λ·factor²
+            is the solve's noise variance; field_scale: the joint field's amplitude as a multiple
+            of ``JOINT_FIELD_AMPLITUDE`` (:func:`carbody.fit.robust.marks_noise` reads both off
+            the marks).
     """
 
     def __init__(self, library: Library, marks: Marks, options: FitOptions, wheelbase_mm: float | None,
-                 prior: ViewPrior, image_size: tuple[int, int] | None = None):
+                 prior: ViewPrior, image_size: tuple[int, int] | None = None, noise_factor: float = 1.0,
+                 field_scale: float = 1.0):
         self.library, self.marks, self.options, self.prior = library, marks, options, prior
         self.wheelbase_mm = wheelbase_mm
+        self.noise_factor = float(noise_factor)
+        #: the solve's noise variance relative to the shape prior's (the marks' spread as unit)
+        self.lam = options.prior_weight * self.noise_factor ** 2
         self.policy = options.policy
         method = options.method
-        self._model = prepared(library, method, wheelbase_mm, field=options.joint_field)
+        self.field_scale = float(field_scale)
+        self._model = prepared(library, method, wheelbase_mm, field=options.joint_field, field_scale=self.field_scale)
         # the search's cheap solve: the library's span alone (no joint field), one Newton round
         self._cheap = self._model if method == "paper" else prepared(library, method, wheelbase_mm, field=False)
         self._facing = _facing_table(library)
@@ -130,7 +139,12 @@ class Scorer:
         w, h = image_size if image_size is not None else 2.0 * np.ptp(marks.uv, axis=0) + 1.0
         #: −log density of a misplaced mark: a click anywhere on the photo, at the prior chance of one
         self.outlier_nats = float(np.log(float(w) * float(h)) - np.log(self.policy.outlier_probability))
-        self.solves = 0
+        self._solves = [0]  # shared by the scorer's copies (with_marks, with_noise): the fit's whole cost
+
+    @property
+    def solves(self) -> int:
+        """How many solves this scorer and its copies have made."""
+        return self._solves[0]
 
     def with_marks(self, marks: Marks) -> "Scorer":
         """The same scorer for renamed or turned marks (prepared models shared)."""
@@ -139,6 +153,18 @@ class Scorer:
         other.marks = marks
         row = {n: i for i, n in enumerate(self._facing.names)}
         other._rows = np.array([row[n] for n in marks.names])
+        return other
+
+    def with_noise(self, factor: float, field_scale: float | None = None) -> "Scorer":
+        """The same scorer with the marks' noise at ``factor`` × λ's and the joint field at
+        ``field_scale`` × its amplitude (default as it is)."""
+        other = object.__new__(Scorer)
+        other.__dict__.update(self.__dict__)
+        other.noise_factor, other.lam = float(factor), self.options.prior_weight * float(factor) ** 2
+        if field_scale is not None and self.options.method != "paper" and self.options.joint_field:
+            other.field_scale = float(field_scale)
+            other._model = prepared(self.library, self.options.method, self.wheelbase_mm, field=True,
+                                    field_scale=other.field_scale)
         return other
 
     def hidden(self, view: View) -> np.ndarray:
@@ -154,10 +180,10 @@ class Scorer:
             FitError: no car reproduces them at a positive image scale; AngleError: a pinhole
                 camera inside the car.
         """
-        self.solves += 1
+        self._solves[0] += 1
         slots = [s for s, k in zip(self.marks.slots, kept) if k]
         uv = self.marks.uv[kept]
-        lam = self.options.prior_weight
+        lam = self.lam
         if self.options.method == "paper":
             sol = solve_simplex(self._model, slots, uv, view, self.library.S, rounds=1 if cheap else 2)
             m = 2 * len(uv) - 2

@@ -1,4 +1,5 @@
-"""One robust estimate of the marks: which to leave out, and which to read under their twin's name.
+"""One robust estimate of the marks: how noisy they are, which to leave out, and which to read
+under their twin's name.
 
 A person's marks are mostly right, a few not: a click on the wrong feature, a left/right pair
 whose names were exchanged (the car's left is the viewer's right from the front), a mark clicked
@@ -13,6 +14,10 @@ lower of the two, so
   noise read from the others' residuals, so a car unlike every template, which misses all its
   genuine marks by a few pixels, keeps them; and only a mark the fit cannot follow either (its
   own residual stands out), so a feature of this car the library bends to stays;
+- :func:`marks_noise` reads the marks' noise off them, and how far the car strays from the
+  library in a way the joint field can follow (a person's clicks on a real photo are several
+  times the prior's noise level, and followed at that level they bend the car far outside the
+  library; a car unlike every template shifts its features together);
 - :func:`twin_exchanges` tries the discrete hypotheses a mark left out suggests — the pair's names
   exchanged, or the mark read under its twin's name when that one is not marked — each scored as
   the view search scores any hypothesis, and keeps the one that explains the marks clearly better.
@@ -68,7 +73,7 @@ def leave_out_misplaced(scorer, view: View, kept: np.ndarray, solution, limit: i
         return kept, solution
     floor = scorer.policy.outlier_floor_spread * scorer.marks.spread
     for _ in range(limit):
-        nats = conditional_costs(solution, scorer.options.prior_weight, floor, scorer.policy.outlier_residual_ratio)
+        nats = conditional_costs(solution, scorer.lam, floor, scorer.policy.outlier_residual_ratio)
         worst = int(np.argmax(nats))
         if not nats[worst] > scorer.outlier_nats:
             break
@@ -80,6 +85,26 @@ def leave_out_misplaced(scorer, view: View, kept: np.ndarray, solution, limit: i
             break
         kept = trial
     return kept, solution
+
+
+def marks_noise(scorer, hypothesis) -> tuple[float, float]:
+    """How far the marks stray from the library, and how: (the noise factor on λ's standard
+    deviation, ``noise_factors``; the joint field's scale on its amplitude, ``field_scales``)
+    under which the marks a hypothesis explains are likeliest at its view (type-II maximum
+    likelihood: the evidence in pixels, normalised for the noise, compares them). A car unlike
+    every template misses its marks in a pattern the field follows (features shifted along the
+    car together); a person's clicks stray one by one, as noise."""
+    best, choice = None, (1.0, 1.0)
+    scales = scorer.policy.field_scales if scorer.options.joint_field and scorer.options.method != "paper" else (1.0,)
+    for c in scales:
+        for f in scorer.policy.noise_factors:
+            try:
+                sol = scorer.with_noise(f, c).solve(hypothesis.view, hypothesis.kept)
+            except (FitError, AngleError):
+                continue
+            if best is None or sol.evidence_px < best:
+                best, choice = sol.evidence_px, (f, c)
+    return choice
 
 
 def twin_name(name: str) -> str:

@@ -18,11 +18,13 @@ from carbody.topology import load_topology
 _PREPARED: dict[tuple, object] = {}
 
 
-def prepared(library: Library, method: str, wheelbase_mm: float | None = None, field: bool = True):
+def prepared(library: Library, method: str, wheelbase_mm: float | None = None, field: bool = True,
+             field_scale: float = 1.0):
     """The library's :class:`KeypointBasis` (``"paper"``) or :class:`ShapeModel` (``"gauss"``),
     built once per library and method; told the car's wheelbase, the shape model of cars sized
     in mm (:func:`sized_shape_model`). The shape models carry the local deformation field
-    (``JOINT_FIELD_AMPLITUDE``) unless ``field`` is False (the library's span alone)."""
+    (``JOINT_FIELD_AMPLITUDE`` × ``field_scale``) unless ``field`` is False (the library's span
+    alone)."""
     method = "gauss" if method == "mixture" else method  # same shape model
     idx = load_topology().keypoint_point_indices
     if method == "paper":
@@ -34,7 +36,10 @@ def prepared(library: Library, method: str, wheelbase_mm: float | None = None, f
     else:
         key = ("sized", float(wheelbase_mm))
         model = _cached(library, key, lambda: sized_shape_model(library, wheelbase_mm))
-    return _cached(library, key + ("field",), lambda: model.with_field(_joint_field(library))) if field else model
+    if not field:
+        return model
+    return _cached(library, key + ("field", float(field_scale)),
+                   lambda: model.with_field(float(field_scale) * _joint_field(library)))
 
 
 #: The local part of the photo-matching deformation (:mod:`carbody.fit.deform`: features moved
@@ -74,7 +79,7 @@ def _cached(library: Library, what, build):
     """``build()``, once per library (keyed by its S array) and ``what``."""
     key = (id(library.S), library.S.shape, what)
     if key not in _PREPARED:
-        if len(_PREPARED) > 16:
+        if len(_PREPARED) > 64:
             _PREPARED.clear()
         _PREPARED[key] = (library.S, build())
     return _PREPARED[key][1]

@@ -9,7 +9,9 @@ The algorithm, in :func:`fit_wireframe`:
    (:func:`~carbody.fit.search.search_views`): each hypothesis is scored by one measure
    (:class:`~carbody.fit.hypothesis.Scorer`), the marks it cannot see and those the others say
    are misplaced left out and charged (:mod:`carbody.fit.robust`); a view kept as given is
-   scored alone;
+   scored alone; read off the marks there how far they stray from the library, as click noise
+   and as the car's own features (:func:`~carbody.fit.robust.marks_noise`), and search again
+   when they stray further than the prior assumed;
 3. try the names the marks left out suggest — a left/right pair exchanged, a mark clicked under
    its twin's name — as discrete hypotheses of the same measure (:func:`~carbody.fit.robust.twin_exchanges`);
 4. correct the camera where that needs refits (:mod:`carbody.fit.fit_camera`): a told distance
@@ -31,7 +33,7 @@ from carbody.fit.hypothesis import Hypothesis, Marks, Scorer
 from carbody.fit.keypoints_io import check_keypoints
 from carbody.fit.options import FitOptions, check_wheelbase
 from carbody.fit.result import FitResult
-from carbody.fit.robust import twin_exchanges
+from carbody.fit.robust import marks_noise, twin_exchanges
 from carbody.fit.search import refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.view_prior import ViewPrior
@@ -86,6 +88,10 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         cameras = search_plan.scan_cameras(library, wheelbase_mm, options.policy)
         cameras = [replace(c, roll=prior.roll_deg) for c in cameras]
         hypothesis, searched = _located(scorer, cameras, search_plan, prior, options)
+        noise = marks_noise(scorer, hypothesis) if options.robust_marks else (1.0, 1.0)
+        if noise != (1.0, 1.0):  # the marks stray further than the prior assumed: search again so
+            scorer = scorer.with_noise(*noise)
+            hypothesis, searched = _located(scorer, cameras, search_plan, prior, options)
         polish = _polisher(options, search_plan)
         hypothesis, scorer = twin_exchanges(scorer, hypothesis, polish)
         by_distance = None
