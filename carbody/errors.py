@@ -58,3 +58,7 @@ class RegionLayoutError(SurfaceError):
 
 class OutputError(CarbodyError):
     """An output file or folder cannot be written (no such folder, no permission, wrong type)."""
+
+
+class AnnotationError(CarbodyError):
+    """The annotation page cannot start (a port that cannot be listened on)."""
