@@ -75,8 +75,9 @@ class Page:
         x, y = self.js("return window.carbody.imageToClient(arguments[0], arguments[1])", u, v)
         return int(round(x)), int(round(y))
 
-    def click_at(self, u: float, v: float) -> dict:
-        """Click photo pixel (u, v); the state once the page has its answer."""
+    def click_at(self, u: float, v: float, edits: bool = True) -> dict:
+        """Click photo pixel (u, v); the state once the page has its answer (``edits`` False: a
+        click that only selects a mark or a ghost)."""
         from selenium.webdriver.common.actions.action_builder import ActionBuilder
 
         revision = self.state["revision"]
@@ -85,7 +86,7 @@ class Page:
         actions.pointer_action.move_to_location(x, y)
         actions.pointer_action.click()
         actions.perform()
-        return self.settled(revision + 1)
+        return self.settled(revision + 1) if edits else self.state
 
     def drag(self, from_uv: tuple[float, float], to_uv: tuple[float, float], steps: int = 8) -> dict:
         """Press at photo pixel ``from_uv``, move to ``to_uv`` and let go."""

@@ -48,12 +48,14 @@ RESULT_FILES = ("overlay.png", "body.png")
 VIEW_CHOICES = (0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0)
 
 #: The keys the page answers, as it lists them.
-KEYS = (("click", "place the keypoint asked (drag a mark or a ghost to move it; drag elsewhere to pan, wheel to zoom)"),
-        ("Enter", "accept the selected ghost where it is"),
-        ("H", "the photo does not show the keypoint asked (hidden)"),
+KEYS = (("click", "place the keypoint asked"),
+        ("drag", "move a mark or a ghost; elsewhere: pan"),
+        ("wheel", "zoom"),
+        ("Enter", "accept the selected ghost"),
+        ("H", "hidden: the photo does not show it"),
         ("N / P", "next / previous keypoint"),
         ("Backspace", "remove the selected mark"),
-        ("S", "save the marks"),
+        ("S", "save"),
         ("F", "fit the photo to the window"))
 
 

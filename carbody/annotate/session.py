@@ -111,16 +111,28 @@ class AnnotationSession:
         self._timer: threading.Timer | None = None
         self.full_fits = full_fits
         self._closed = False
+        self._background: list[threading.Thread] = []
         if warm_up:
-            threading.Thread(target=live_fit.warm_up, daemon=True, name="carbody-warm-up").start()
+            self._background.append(threading.Thread(target=live_fit.warm_up, daemon=True, name="carbody-warm-up"))
             if full_fits:
                 from carbody.annotate.worker import FullFitWorker
 
                 self._worker = FullFitWorker(self._full_fit_done)
         if classify and view is None:
-            threading.Thread(target=self._classify, daemon=True, name="carbody-classify").start()
+            self._background.append(threading.Thread(target=self._classify, daemon=True, name="carbody-classify"))
+        for thread in self._background:
+            thread.start()
         with self._lock:
             self._refit()
+
+    def wait_started(self, timeout: float = 60.0) -> None:
+        """Wait for the start-up work in the background (the warm-up fits here and in the
+        worker, the classifier)."""
+        deadline = time.monotonic() + timeout
+        for thread in self._background:
+            thread.join(max(0.0, deadline - time.monotonic()))
+        if self._worker is not None:
+            self._worker.ready.wait(max(0.0, deadline - time.monotonic()))
 
     # ---- the view guess
 

@@ -7,7 +7,8 @@ the page works the same from the ``carbody`` command, a notebook or a test.
 
 Each request is one line ``{"id", "marks", "image_size", "prior"}``; each answer one line
 ``{"id", "payload"}`` (:func:`carbody.annotate.live_fit.full_fit_payload`) or ``{"id",
-"error"}``. The parent (:class:`FullFitWorker`) keeps at most one request in flight.
+"error"}``; the first line, ``{"ready": true}``, says the child has warmed up. The parent
+(:class:`FullFitWorker`) keeps at most one request in flight.
 """
 from __future__ import annotations
 
@@ -63,6 +64,7 @@ class FullFitWorker:
                                       stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
                                       bufsize=1)
         self._on_result = on_result
+        self.ready = threading.Event()  # set when the child has warmed up
         self._write = threading.Lock()
         threading.Thread(target=self._read, daemon=True, name="carbody-full-fit-reader").start()
 
@@ -84,6 +86,9 @@ class FullFitWorker:
                 answer = json.loads(line)
             except json.JSONDecodeError:
                 continue
+            if answer.get("ready"):
+                self.ready.set()
+                continue
             self._on_result(int(answer["id"]), answer.get("payload"))
 
     def close(self) -> None:
@@ -103,6 +108,8 @@ def main() -> None:
     from carbody.annotate import live_fit
 
     live_fit.warm_worker()
+    sys.stdout.write(json.dumps({"ready": True}) + "\n")
+    sys.stdout.flush()
     for line in sys.stdin:
         request = None
         try:

@@ -486,8 +486,16 @@ async function start() {
   const setup = await api("/api/setup");
   setup.byName = Object.fromEntries(setup.keypoints.map((k) => [k.name, k]));
   app.setup = setup;
-  $("image-name").textContent = `${setup.image} → ${setup.output}`;
-  $("key-table").innerHTML = setup.keys.map(([k, what]) => `<tr><td>${k}</td><td>${what}</td></tr>`).join("");
+  $("image-name").textContent = `${setup.image} → ${setup.output.split("/").pop()}`;
+  $("image-name").title = `marks are saved to ${setup.output}`;
+  const legend = $("key-legend");
+  for (const [k, what] of setup.keys) {
+    const item = document.createElement("span");
+    const key = document.createElement("kbd");
+    key.textContent = k;
+    item.append(key, " " + what);
+    legend.appendChild(item);
+  }
   const choices = $("view-choices");
   for (const azimuth of setup.views) {
     const c = document.createElement("canvas");
