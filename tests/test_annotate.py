@@ -263,3 +263,31 @@ def test_the_command_refuses_bad_input_in_one_line(tmp_path):
         assert proc.returncode == 2, (args, proc.stderr)
         lines = proc.stderr.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], proc.stderr
+
+
+def test_reconstruct_runs_the_whole_job_into_a_folder_and_serves_its_pictures(tmp_path):
+    """The page's Reconstruct: the example's marks loaded, the job run in the background into
+    the folder asked, then its overlay and shaded body served to the page."""
+    import time
+
+    from carbody.annotate.server import AnnotationServer
+
+    session = quiet_session(tmp_path, keypoints=EXAMPLE_MARKS, output=tmp_path / "marks.json")
+    srv = AnnotationServer(session)
+    srv.serve_in_thread()
+    try:
+        token = {"X-Carbody-Token": srv.token}
+        status, data = request(srv.url + "api/reconstruct", {"folder": str(tmp_path / "out")}, token)
+        assert status == 200 and json.loads(data)["reconstruction"]["state"] == "running"
+        deadline = time.monotonic() + 240
+        while session.reconstruction.state == "running" and time.monotonic() < deadline:
+            time.sleep(0.5)
+        rec = json.loads(request(srv.url + "api/state")[1])["reconstruction"]
+        assert rec["state"] == "done", rec
+        assert {"body.step", "wireframe.step", "overlay.png", "body.png", "report.json"} <= set(rec["files"])
+        for name in ("overlay.png", "body.png"):
+            status, png = request(srv.url + "result/" + name)
+            assert status == 200 and png[:4] == b"\x89PNG"
+    finally:
+        srv.shutdown()
+        srv.server_close()

@@ -75,13 +75,16 @@ class LiveFit:
         fit: the :class:`carbody.fit.FitResult`, or None when the marks cannot be fitted yet.
         error: why not (too few marks, marks no car explains), else None.
         quick: the quick fit (True) or the full one.
-        seconds: how long the fit took.
+        seconds: how long the fit took (wall clock).
+        cpu_seconds: the processor time it took (its thread's): what it costs on an idle
+            machine, where a busy one stretches ``seconds``.
     """
 
     fit: object | None
     error: str | None
     quick: bool
     seconds: float
+    cpu_seconds: float = 0.0
 
 
 def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int], prior,
@@ -100,7 +103,7 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
     from carbody.errors import CarbodyError
     from carbody.fit import FitOptions, fit_wireframe
 
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.thread_time()
     if len(marks) < MIN_MARKS:
         return LiveFit(None, f"{MIN_MARKS - len(marks)} more mark(s) and the car is fitted", quick, 0.0)
     policy = quick_policy(len(marks), scan_from) if quick else marks_policy(len(marks))
@@ -112,8 +115,8 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
         fit = fit_wireframe(dict(marks), prior, library, image_size=image_size,
                             options=FitOptions(camera_distance_mm="auto", policy=policy))
     except CarbodyError as exc:
-        return LiveFit(None, str(exc), quick, time.perf_counter() - start)
-    return LiveFit(fit, None, quick, time.perf_counter() - start)
+        return LiveFit(None, str(exc), quick, time.perf_counter() - start, time.thread_time() - cpu)
+    return LiveFit(fit, None, quick, time.perf_counter() - start, time.thread_time() - cpu)
 
 
 def _px(a: np.ndarray) -> list:
@@ -181,14 +184,14 @@ _VISIBLE: dict[tuple, list[str]] = {}
 def fit_payload(live: LiveFit, marks: dict[str, tuple[float, float]]) -> dict:
     """What the page draws of a fit (module docstring), JSON-ready.
 
-    Keys: ``ok``, ``error``, ``quick``, ``seconds``; with a fit also ``view`` (azimuth,
+    Keys: ``ok``, ``error``, ``quick``, ``seconds``, ``cpu_seconds``; with a fit also ``view`` (azimuth,
     elevation, distance mm), ``wireframe`` (polylines), ``marks`` ({name: {reprojected,
     residual_px, status ("kept", "rejected", "renamed", "suspect"), note}}), ``ghosts``
     ({name: {uv, sd_px}} for the unmarked names the view shows), ``summary`` (mean residual,
     poor-fit flags, wheelbase).
     """
     out = {"ok": live.fit is not None, "error": live.error, "quick": live.quick,
-           "seconds": round(live.seconds, 4)}
+           "seconds": round(live.seconds, 4), "cpu_seconds": round(live.cpu_seconds, 4)}
     fit = live.fit
     if fit is None:
         return out

@@ -117,9 +117,10 @@ function step(delta) {
 }
 
 function target() {
-  // the keypoint a click on the photo places: the one asked, or the first still to ask
+  // the keypoint a click on the photo places: the one asked (a hidden one picked from the list
+  // is shown again), or the first still to ask
   const s = app.state, c = app.current;
-  if (c && !(c in s.marks) && !s.hidden.includes(c)) return c;
+  if (c && !(c in s.marks)) return c;
   return s.ask[0] || null;
 }
 
