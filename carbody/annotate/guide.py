@@ -3,11 +3,13 @@
 Before the car is fitted the page knows only the view (the classifier's guess or the one the user
 picked): it asks the keypoints that view shows on the library's mean car, spread over the car as
 far as they go (farthest-point order in the picture), so the first five already pin the photo's
-scale, offset and view — those on the centre line and the near side first, then the far side
-(:func:`near_side`): a far-side corner the mean car shows at the silhouette is often hidden on
-the photo's car. Once the car is fitted it asks the keypoint the fit is least sure of in
+scale, offset and view. Once the car is fitted it asks the keypoint the fit is least sure of in
 the photo (its ghost's expected error, pixels): a mark there teaches the fit the most, and the
 ghosts it is sure of can be accepted with one key.
+
+(Asking the near side's keypoints before the far side's was tried: it made no difference to the
+real photos' skipped keypoints and took the example from 8 to 23 actions to the hand-marked
+fit, ``benchmarks/bench_annotate.py``.)
 """
 from __future__ import annotations
 
@@ -60,23 +62,6 @@ def spread_order(view: View, names: list[str], placed: dict[str, tuple[float, fl
     return order
 
 
-#: A view this far (degrees) or more from straight ahead or behind has a near side: its far-side
-#: twins are asked after the rest.
-NEAR_SIDE_DEG = 20.0
-
-
-def near_side(view: View, names: list[str]) -> tuple[list[str], list[str]]:
-    """(centre-line and near-side names, far-side names) of ``names`` for ``view``."""
-    from carbody.camera import camera_direction
-
-    toward = float(camera_direction(View(view.azimuth, 0.0))[0])  # + : the camera on the car's left
-    if abs(toward) < np.sin(np.radians(NEAR_SIDE_DEG)):
-        return list(names), []
-    points = reference_keypoints()
-    near = [n for n in names if points[n][0] * toward >= -1e-9 or abs(points[n][0]) < 1e-6]
-    return near, [n for n in names if n not in near]
-
-
 def shown_names(view: View) -> list[str]:
     """The names the reference car shows from ``view`` (both halves, id order)."""
     from carbody.fit import visible_keypoints
@@ -98,6 +83,4 @@ def ask_order(view: View, marks: dict, hidden: set[str], ghosts: dict[str, dict]
         left = [n for n in ghosts if n not in marks and n not in hidden]
         return sorted(left, key=lambda n: -ghosts[n]["sd_px"])
     left = [n for n in shown_names(view) if n not in marks and n not in hidden]
-    near, far = near_side(view, left)
-    first = spread_order(view, near, dict(marks))
-    return first + spread_order(view, far, {**dict(marks), **{n: None for n in first}})
+    return spread_order(view, left, dict(marks))
