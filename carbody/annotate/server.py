@@ -264,6 +264,13 @@ def serve(session, port: int = 0, open_browser: bool = True, out=None) -> None:
     print(f"carbody annotate: {server.url}  (marks saved to {session.output}; Ctrl+C to stop)", file=out, flush=True)
     if open_browser:
         webbrowser.open(server.url)
+    if threading.current_thread() is threading.main_thread():
+        import signal
+
+        def stop(signum, frame):  # a polite kill stops as Ctrl+C does: the worker ended too
+            raise KeyboardInterrupt
+
+        signal.signal(signal.SIGTERM, stop)
     try:
         server.serve_forever()
     except KeyboardInterrupt:

@@ -92,15 +92,20 @@ class FullFitWorker:
             self._on_result(int(answer["id"]), answer.get("payload"))
 
     def close(self) -> None:
-        """End the child (its stdin closed: it finishes the fit at hand and leaves)."""
+        """End the child: its stdin closed (it leaves when it reads the end), and stopped if it is
+        still busy a moment later (a fit writes nothing: nothing is lost)."""
         try:
             self._proc.stdin.close()
         except OSError:
             pass
         try:
-            self._proc.wait(timeout=5)
+            self._proc.wait(timeout=0.5)
         except subprocess.TimeoutExpired:
-            self._proc.kill()
+            self._proc.terminate()
+            try:
+                self._proc.wait(timeout=2)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
 
 
 def main() -> None:
