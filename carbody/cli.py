@@ -18,6 +18,7 @@ from carbody.errors import CarbodyError
 COMMAND_MODULES = (
     "carbody.reconstruct_cli",
     "carbody.batch_cli",
+    "carbody.annotate.cli",
     "carbody.demo",
     "carbody.freecad_cli",
     "carbody.view.cli",

@@ -64,3 +64,7 @@ class BatchError(CarbodyError):
     """A batch cannot run: its manifest is unreadable or mis-structured, two rows write one
     folder, another batch holds the output folder, or the Dask cluster cannot be reached or
     does not share the output folder."""
+
+
+class AnnotationError(CarbodyError):
+    """The annotation page cannot start (a port that cannot be listened on)."""

@@ -39,7 +39,8 @@ def face_region(name: str) -> str:
 
 
 def list_parts(path: Path) -> dict:
-    """{product, curves: [{name, centre}], faces: [{name, region, centre, area}]} of a STEP file."""
+    """{product, curves: [{name, centre}], faces: [{name, region, centre, area, colour}]} of a STEP
+    file (``colour``: the face's sRGB 0..1 as the file colours it, None when it does not)."""
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
@@ -49,12 +50,13 @@ def list_parts(path: Path) -> dict:
     body = read_body_step(path)
     if body.faces:
         faces = []
-        for name, _, face in body.faces:
+        for name, rgb, face in body.faces:
             props = GProp_GProps()
             BRepGProp.SurfaceProperties_s(face, props)
             c = props.CentreOfMass()
-            faces.append({"name": name, "region": face_region(name), "centre": [c.X(), c.Y(), c.Z()],
-                          "area": props.Mass()})
+            region = face_region(name)
+            faces.append({"name": name, "region": region, "centre": [c.X(), c.Y(), c.Z()],
+                          "area": props.Mass(), "colour": None if rgb is None else [round(float(v), 4) for v in rgb]})
         return {"product": body.product, "curves": [], "faces": faces}
     product, curves = read_curves_step(path)
     return {"product": product, "curves": [{"name": c.name, "centre": curve_centre(c.poles)} for c in curves],

@@ -34,6 +34,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--truth", default=None, help="ground truth wireframe STEP or template name: adds 3D errors")
     p.add_argument("--name", default=None, help="the car's name in the STEP files (default: photo file stem)")
     p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
+    p.add_argument("--progress", action="store_true",
+                   help="also print a line 'carbody: stage NAME (K/N)' on stderr as each stage starts "
+                        "(for a program running this one: the bar shows only at a terminal)")
     p.set_defaults(func=run_reconstruct)
 
 
@@ -78,6 +81,12 @@ def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) ->
             if bar.n or label != STAGES[0]:
                 bar.update(1)
             bar.set_description(label)
+            if args.progress:
+                say_stage(label)
+
+        def say_stage(label: str) -> None:
+            k = (STAGES + ("write",)).index(label) + 1
+            print(f"carbody: stage {label} ({k}/{len(STAGES) + 1})", file=sys.stderr, flush=True)
 
         result = reconstruct(args.image, args.keypoints, view, args.wheelbase, name=args.name,
                              elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
@@ -86,6 +95,8 @@ def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) ->
                              on_stage=on_stage)
         bar.update(1)
         bar.set_description("write")
+        if args.progress:
+            say_stage("write")
         paths = result.write(args.out, truth)
         bar.update(1)
     print((args.out / "summary.txt").read_text(), end="", file=out)

@@ -124,6 +124,7 @@ group = core.import_step_parts(doc, {str(body_step)!r}, "Body")
 objs = {{o.Label: o for o in group.Group}}
 shell = objs.pop("BodyShell")
 print("RESULT " + json.dumps({{
+    "colours": {{n: list(o.RegionColour)[:3] for n, o in objs.items()}},
     "regions": sorted(objs),
     "valid": all(o.Shape.isValid() for o in objs.values()) and shell.Shape.isValid(),
     "faces": sum(len(o.Shape.Faces) for o in objs.values()),
@@ -133,6 +134,98 @@ print("RESULT " + json.dumps({{
     assert result["regions"] == sorted(r.name for r in topology.regions)
     assert result["valid"]
     assert result["faces"] == result["shell_faces"] == len(listing["faces"])
+    # each region keeps the colour the STEP file gives it (FreeCAD stores colours in 8 bits)
+    from carbody.surface.body import region_colour
+
+    for region, rgb in result["colours"].items():
+        assert np.allclose(rgb, region_colour(region), atol=1 / 255), region
+
+
+def test_reconstruct_runs_in_a_qprocess_with_its_progress_while_freecad_keeps_running(tmp_path):
+    """The GUI's Reconstruct runs carbody in a QProcess: FreeCAD's event loop keeps turning (a
+    timer ticks all along), each stage line comes as the command writes it, and a failure ends
+    in its one line."""
+    fake = tmp_path / "fake_carbody.py"
+    fake.write_text("import sys, time\n"
+                    "if sys.argv[1] == 'parts':\n"
+                    "    print('{\"file\": \"' + sys.argv[2].rsplit('/', 1)[-1] + '\"}'); sys.exit(0)\n"
+                    "if sys.argv[1] == 'fail':\n"
+                    "    print('carbody reconstruct: error: the keypoints are coincident', file=sys.stderr); sys.exit(2)\n"
+                    "for stage in ('view', 'fit', 'surfaces', 'write'):\n"
+                    "    print(f'carbody: stage {stage}', file=sys.stderr, flush=True); time.sleep(0.3)\n"
+                    "print('{\"ok\": true}')\n")
+    result = run_freecad(f"""
+import json, sys, time, FreeCAD
+from PySide import QtCore
+from carbody_wb import core
+app = QtCore.QCoreApplication.instance() or QtCore.QCoreApplication([])
+command = [{sys.executable!r}, {str(fake)!r}]
+events = []
+ticks = [0]
+timer = QtCore.QTimer(); timer.timeout.connect(lambda: ticks.__setitem__(0, ticks[0] + 1)); timer.start(50)
+def run(args):
+    loop = QtCore.QEventLoop()
+    out = {{}}
+    def done(ok, stdout, message):
+        out.update(ok=ok, stdout=stdout, message=message); loop.quit()
+    job = core.CarbodyProcess(args, lambda line: events.append([round(time.monotonic(), 2), line, ticks[0]]), done, command).start()
+    started = time.monotonic()
+    loop.exec_()
+    out["seconds"] = time.monotonic() - started
+    return out
+good = run(["reconstruct"])
+bad = run(["fail"])
+# the whole job: reconstruct, then the two STEP files' parts listings, one after the other
+loop = QtCore.QEventLoop()
+said, finished = [], {{}}
+def job_done(ok, result):
+    finished.update(ok=ok, result=result); loop.quit()
+core.ReconstructJob("car.png", "car.json", {str(tmp_path / "out")!r}, command=command, on_progress=said.append,
+                    on_done=job_done).start()
+loop.exec_()
+print("RESULT " + json.dumps({{"good": good, "bad": bad, "events": events, "ticks": ticks[0], "said": said,
+                               "job": finished}}))
+""", tmp_path, env={"CARBODY_COMMAND": ""})
+    good, bad, events = result["good"], result["bad"], result["events"]
+    assert good["ok"] and json.loads(good["stdout"]) == {"ok": True}
+    stages = events[:4]
+    assert [e[1] for e in stages] == [f"carbody: stage {s}" for s in ("view", "fit", "surfaces", "write")]
+    # the lines came as they were written, and the timer ticked in between: nothing blocked
+    assert stages[-1][0] - stages[0][0] > 0.6 and stages[-1][2] - stages[0][2] >= 8
+    assert not bad["ok"] and bad["message"] == "carbody reconstruct: error: the keypoints are coincident"
+    assert result["job"] == {"ok": True, "result": {"wireframe": {"file": "wireframe.step"}, "body": {"file": "body.step"}}}
+    assert result["said"] == ["stage view", "stage fit", "stage surfaces", "stage write",
+                              "reading the wireframe back", "reading the body back"]
+
+
+def test_the_carbody_command_is_found_on_path_or_in_the_workbenchs_venv(tmp_path):
+    """With no $CARBODY_COMMAND and nothing set: ``carbody`` on PATH, else the venv beside (or
+    above) the workbench's real folder, a link into FreeCAD's Mod/ followed."""
+    repo = tmp_path / "repo"
+    (repo / ".venv" / "bin").mkdir(parents=True)
+    script = repo / ".venv" / "bin" / "carbody"
+    script.write_text("#!/bin/sh\n")
+    script.chmod(0o755)
+    (repo / "workbench").mkdir()
+    (tmp_path / "Mod").mkdir()
+    (tmp_path / "Mod" / "carbody").symlink_to(repo / "workbench")
+    on_path = tmp_path / "bin"
+    on_path.mkdir()
+    (on_path / "carbody").write_text("#!/bin/sh\n")
+    (on_path / "carbody").chmod(0o755)
+    result = run_freecad(f"""
+import json, FreeCAD
+from carbody_wb import core
+linked = {str(tmp_path / "Mod" / "carbody")!r}
+print("RESULT " + json.dumps({{
+    "venv": core.carbody_command(linked, path="/nonexistent"),
+    "path": core.carbody_command(linked, path={str(on_path)!r}),
+    "none": core.carbody_command({str(tmp_path / "Mod")!r}, path="/nonexistent"),
+}}))
+""", tmp_path, env={"CARBODY_COMMAND": ""})
+    assert result["venv"] == [str(script)]
+    assert result["path"] == [str(on_path / "carbody")]
+    assert result["none"] == ["carbody"]
 
 
 def test_the_macro_reconstructs_headless_and_the_document_matches_the_step_files(tmp_path):

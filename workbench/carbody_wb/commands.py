@@ -66,6 +66,11 @@ class Reconstruct(_Command):
     menu = "Reconstruct car body"
     tooltip = "Run carbody on the photo and keypoints; bring the wireframe and body in as Part objects"
 
+    job = None  # the run in progress (one at a time)
+
+    def IsActive(self):
+        return Reconstruct.job is None or not Reconstruct.job.running
+
     def run(self):
         from PySide import QtGui
 
@@ -74,10 +79,36 @@ class Reconstruct(_Command):
         if not image or not keypoints:
             raise core.CarbodyWorkbenchError("load a photo and its keypoints first")
         out = QtGui.QFileDialog.getExistingDirectory(None, "Output folder")
-        if out:
-            _, _, report = core.reconstruct(_doc(), image, keypoints, out)
+        if not out:
+            return
+        doc = _doc()
+
+        def done(ok, result):
+            Reconstruct.job = None
+            if not ok:
+                _status(f"carbody: {result}", error=True)
+                return
+            try:
+                _, _, report = core.import_reconstruction(doc, image, out, listings=result)
+            except core.CarbodyWorkbenchError as exc:
+                _status(f"carbody: {exc}", error=True)
+                return
             FreeCAD.Console.PrintMessage(core.summary(out))
+            _status(f"carbody: done, the car is in {doc.Label}")
             _look_as_the_photo(report["fit"].get("photo_plane"))
+
+        _status("carbody: reconstructing (FreeCAD stays usable meanwhile) ...")
+        # a run in a QProcess: the GUI keeps its event loop; progress in the status bar and report view
+        Reconstruct.job = core.ReconstructJob(image, keypoints, out, on_progress=lambda t: _status(f"carbody: {t}"),
+                                              on_done=done).start()
+
+
+def _status(text, error=False):
+    """A line in the status bar and the report view."""
+    (FreeCAD.Console.PrintError if error else FreeCAD.Console.PrintMessage)(text + "\n")
+    window = FreeCADGui.getMainWindow()
+    if window is not None:
+        window.statusBar().showMessage(text, 0 if error else 15000)
 
 
 def _look_as_the_photo(placement):
@@ -104,9 +135,12 @@ class Preferences(_Command):
     def run(self):
         from PySide import QtGui
 
-        text, ok = QtGui.QInputDialog.getText(None, "carbody", "carbody command:", text=" ".join(core.carbody_command()))
-        if ok and text:
-            core.set_carbody_command(text)
+        stored = FreeCAD.ParamGet(core.PARAM_PATH).GetString("CarbodyCommand", "")
+        found = " ".join(core.carbody_command())
+        text, ok = QtGui.QInputDialog.getText(None, "carbody", "carbody command (empty: the one on PATH or in "
+                                              f"the workbench's venv, now {found}):", text=stored)
+        if ok:
+            core.set_carbody_command(text.strip())
 
 
 def register():

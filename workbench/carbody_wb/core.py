@@ -1,9 +1,13 @@
 """carbody inside FreeCAD, without the GUI: run the ``carbody`` command, bring its STEP results in.
 
-FreeCAD has its own OCCT build, so carbody runs as a separate process (the command is set in
-Preferences > carbody, parameter ``CarbodyCommand``, or ``$CARBODY_COMMAND``). Curve and region
-names come from ``carbody parts FILE --json``, matched to the shapes FreeCAD reads by position,
-so the import does not depend on the order a STEP reader lists things in.
+FreeCAD has its own OCCT build, so carbody runs as a separate process: ``$CARBODY_COMMAND``,
+else the command set with **carbody command…** (parameter ``CarbodyCommand``), else ``carbody``
+on PATH, else the ``carbody`` of the virtual environment the workbench was installed from (a
+``.venv`` in or beside its real folder: the repository's, when ``workbench/`` is linked into
+FreeCAD's ``Mod/``). Curve and region names come from ``carbody parts FILE --json``, matched to
+the shapes FreeCAD reads by position, so the import does not depend on the order a STEP reader
+lists things in; the region colours too. :class:`CarbodyProcess` runs the command in a
+``QProcess``, so FreeCAD stays responsive while the reconstruction runs.
 """
 import json
 import math
@@ -22,27 +26,69 @@ class CarbodyWorkbenchError(Exception):
     """A one-line reason the workbench could not do what was asked."""
 
 
-def carbody_command():
-    """The carbody command as an argument list: ``$CARBODY_COMMAND`` or the preference."""
-    text = os.environ.get("CARBODY_COMMAND") or FreeCAD.ParamGet(PARAM_PATH).GetString("CarbodyCommand", "carbody")
-    return shlex.split(text)
+#: Where a virtual environment keeps its console scripts (POSIX, Windows).
+VENV_SCRIPTS = (os.path.join("bin", "carbody"), os.path.join("Scripts", "carbody.exe"))
+
+#: Names a project's virtual environment goes by.
+VENV_NAMES = (".venv", "venv")
 
 
-def set_carbody_command(text):
-    FreeCAD.ParamGet(PARAM_PATH).SetString("CarbodyCommand", text)
+def installed_carbody(workbench_dir=None):
+    """The ``carbody`` of the virtual environment the workbench came with: a ``.venv`` (or
+    ``venv``) in the workbench's real folder or the one above it (the repository's, ``workbench/``
+    beside ``.venv/``; a link into FreeCAD's ``Mod/`` is followed to where it points); None when
+    there is none."""
+    here = os.path.realpath(workbench_dir or os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    for _ in range(2):
+        for venv in VENV_NAMES:
+            for script in VENV_SCRIPTS:
+                candidate = os.path.join(here, venv, script)
+                if os.path.isfile(candidate) and os.access(candidate, os.X_OK):
+                    return candidate
+        parent = os.path.dirname(here)
+        if parent == here:
+            break
+        here = parent
+    return None
 
 
-def run_carbody(args, command=None):
-    """Run ``carbody ARGS``; its one-line error becomes a :class:`CarbodyWorkbenchError`."""
+def carbody_command(workbench_dir=None, path=None):
+    """The carbody command as an argument list (module docstring for the order it is looked for
+    in); ``["carbody"]`` when none is found (running it then says so in one line)."""
+    text = os.environ.get("CARBODY_COMMAND") or FreeCAD.ParamGet(PARAM_PATH).GetString("CarbodyCommand", "")
+    if text.strip():
+        return shlex.split(text)
+    found = shutil.which("carbody", path=path) or installed_carbody(workbench_dir)
+    return [found] if found else ["carbody"]
+
+
+def resolved_command(command=None):
+    """``command`` (default :func:`carbody_command`) with its program found, as an argument list.
+
+    Raises:
+        CarbodyWorkbenchError: the program is not there.
+    """
     cmd = list(command or carbody_command())
     exe = cmd[0] if os.path.isabs(cmd[0]) else shutil.which(cmd[0])
     if not exe or not os.path.exists(exe):
         raise CarbodyWorkbenchError(
-            f"carbody command not found: {cmd[0]!r} (set Preferences > carbody > CarbodyCommand or $CARBODY_COMMAND)")
-    proc = subprocess.run([exe, *cmd[1:], *map(str, args)], capture_output=True, text=True)
+            f"carbody command not found: {cmd[0]!r} (put carbody on PATH, or set it with the "
+            "'carbody command...' button or $CARBODY_COMMAND)")
+    return [exe, *cmd[1:]]
+
+
+def last_error_line(stderr, code):
+    """The one line a failed carbody run says why (its last non-empty stderr line)."""
+    lines = [line for line in (stderr or "").strip().splitlines() if line.strip() and not line.startswith("carbody: stage ")]
+    return lines[-1] if lines else f"carbody exited with code {code}"
+
+
+def run_carbody(args, command=None):
+    """Run ``carbody ARGS`` and wait; its one-line error becomes a :class:`CarbodyWorkbenchError`."""
+    cmd = resolved_command(command)
+    proc = subprocess.run([*cmd, *map(str, args)], capture_output=True, text=True)
     if proc.returncode != 0:
-        lines = [line for line in proc.stderr.strip().splitlines() if line.strip()]
-        raise CarbodyWorkbenchError(lines[-1] if lines else f"carbody exited with code {proc.returncode}")
+        raise CarbodyWorkbenchError(last_error_line(proc.stderr, proc.returncode))
     return proc
 
 
@@ -110,13 +156,17 @@ def _nearest(centres, targets):
     return out
 
 
-def import_step_parts(doc, step_path, group_name, command=None):
-    """Read a carbody STEP file into ``doc``: one Part object per curve, or per body region.
+def import_step_parts(doc, step_path, group_name, command=None, listing=None):
+    """Read a carbody STEP file into ``doc``: one Part object per curve, or per body region in
+    the region's colour (``RegionColour``, and the shape's colour in the GUI).
 
+    Args:
+        listing: ``carbody parts STEP --json`` already run (default: run it now).
     Returns:
         the group holding the new objects.
     """
-    listing = json.loads(run_carbody(["parts", step_path, "--json"], command).stdout)
+    if listing is None:
+        listing = json.loads(run_carbody(["parts", step_path, "--json"], command).stdout)
     shape = Part.Shape()
     shape.read(os.path.abspath(step_path))
     group = doc.addObject("App::DocumentObjectGroup", group_name)
@@ -129,15 +179,19 @@ def import_step_parts(doc, step_path, group_name, command=None):
     if len(entries) != len(items):
         raise CarbodyWorkbenchError(f"{step_path}: FreeCAD reads {len(items)} items, carbody lists {len(entries)}")
     order = _nearest([i.CenterOfMass for i in items], [FreeCAD.Vector(*e["centre"]) for e in entries])
-    parts = {}
+    parts, colours = {}, {}
     for entry, i in zip(entries, order):
         parts.setdefault(entry[key], []).append(items[i])
+        if entry.get("colour"):
+            colours.setdefault(entry[key], tuple(float(c) for c in entry["colour"]))
     for name, shapes in parts.items():
         obj = doc.addObject("Part::Feature", name)
         obj.Label = name
         # A region's two mirror halves need not touch: a compound holds them either way; the
         # sewn shell itself is the BodyShell object below.
         obj.Shape = shapes[0] if len(shapes) == 1 else Part.Compound(shapes)
+        if name in colours:
+            colour_region(obj, colours[name])
         group.addObject(obj)
     if key == "region":
         whole = doc.addObject("Part::Feature", f"{group_name}Shell")
@@ -147,24 +201,186 @@ def import_step_parts(doc, step_path, group_name, command=None):
     return group
 
 
-def reconstruct(doc, image, keypoints, out_dir, view=None, wheelbase_mm=None, command=None):
-    """Run ``carbody reconstruct`` and bring the wireframe and body into ``doc``.
+def colour_region(obj, rgb):
+    """Give a region's Part object its colour: kept as ``RegionColour`` (the document remembers
+    it without a GUI) and shown as the shape's colour when FreeCAD has its GUI."""
+    if not hasattr(obj, "RegionColour"):
+        obj.addProperty("App::PropertyColor", "RegionColour", "carbody", "the region's colour in carbody's STEP file")
+    obj.RegionColour = tuple(rgb)
+    if FreeCAD.GuiUp and getattr(obj, "ViewObject", None) is not None:
+        obj.ViewObject.ShapeColor = tuple(rgb)
 
-    Returns:
-        (wireframe group, body group, report dict).
-    """
-    args = ["reconstruct", image, "--keypoints", keypoints, "-o", out_dir]
+
+def reconstruct_args(image, keypoints, out_dir, view=None, wheelbase_mm=None):
+    """The arguments of ``carbody reconstruct`` for a photo and its keypoints (with a stage line
+    on stderr as each stage starts: ``--progress``)."""
+    args = ["reconstruct", os.path.abspath(image), "--keypoints", os.path.abspath(keypoints),
+            "-o", os.path.abspath(out_dir), "--progress"]
     if view is not None:
         args += ["--view", f"{float(view):g}"]
     if wheelbase_mm is not None:
         args += ["--wheelbase", f"{float(wheelbase_mm):g}"]
-    run_carbody(args, command)
-    wire = import_step_parts(doc, os.path.join(out_dir, "wireframe.step"), "Wireframe", command)
-    body = import_step_parts(doc, os.path.join(out_dir, "body.step"), "Body", command)
+    return args
+
+
+def import_reconstruction(doc, image, out_dir, command=None, listings=None):
+    """Bring a reconstruction folder's wireframe and body into ``doc`` and stand the photo where
+    the fit says.
+
+    Args:
+        listings: {"wireframe": ..., "body": ...} ``carbody parts --json`` already run.
+    Returns:
+        (wireframe group, body group, report dict).
+    """
+    listings = listings or {}
+    wire = import_step_parts(doc, os.path.join(out_dir, "wireframe.step"), "Wireframe", command, listings.get("wireframe"))
+    body = import_step_parts(doc, os.path.join(out_dir, "body.step"), "Body", command, listings.get("body"))
     with open(os.path.join(out_dir, "report.json")) as f:
         report = json.load(f)
     line_up_photo(doc, image, report)
     return wire, body, report
+
+
+def reconstruct(doc, image, keypoints, out_dir, view=None, wheelbase_mm=None, command=None):
+    """Run ``carbody reconstruct`` and wait (the macro, headless), then bring the wireframe and
+    body into ``doc``; the GUI command runs :class:`ReconstructJob` instead.
+
+    Returns:
+        (wireframe group, body group, report dict).
+    """
+    run_carbody(reconstruct_args(image, keypoints, out_dir, view, wheelbase_mm), command)
+    return import_reconstruction(doc, image, out_dir, command)
+
+
+class CarbodyProcess:
+    """One ``carbody`` run in a ``QProcess``: FreeCAD's event loop keeps running meanwhile.
+
+    Args:
+        args: the command's arguments.
+        on_line: called with each line it writes on stderr (its progress), as it comes.
+        on_done: called once with (ok, stdout, message): ``message`` the one-line error.
+        command: the carbody command (default :func:`carbody_command`).
+    """
+
+    def __init__(self, args, on_line=None, on_done=None, command=None):
+        from PySide import QtCore
+
+        self._cmd = resolved_command(command)
+        self._args = [str(a) for a in args]
+        self._on_line, self._on_done = on_line, on_done
+        self._stdout, self._stderr, self._partial = [], [], ""
+        self._finished = False
+        self.process = QtCore.QProcess()
+        self.process.setProgram(self._cmd[0])
+        self.process.setArguments(self._cmd[1:] + self._args)
+        self.process.readyReadStandardOutput.connect(self._read_stdout)
+        self.process.readyReadStandardError.connect(self._read_stderr)
+        self.process.finished.connect(self._exited)
+        self.process.errorOccurred.connect(self._failed)
+
+    def start(self):
+        self.process.start()
+        return self
+
+    @property
+    def running(self):
+        return not self._finished
+
+    def _read_stdout(self):
+        self._stdout.append(bytes(self.process.readAllStandardOutput()).decode(errors="replace"))
+
+    def _read_stderr(self):
+        text = self._partial + bytes(self.process.readAllStandardError()).decode(errors="replace")
+        *lines, self._partial = text.replace("\r", "\n").split("\n")
+        for line in lines:
+            if line.strip():
+                self._stderr.append(line)
+                if self._on_line:
+                    self._on_line(line)
+
+    def _exited(self, code, status=None):
+        if self._finished:
+            return
+        self._read_stdout()
+        self._read_stderr()
+        self._finished = True
+        ok = code == 0 and (status is None or int(status) == 0)
+        message = "" if ok else last_error_line("\n".join(self._stderr + [self._partial]), code)
+        if self._on_done:
+            self._on_done(ok, "".join(self._stdout), message)
+
+    def _failed(self, error):
+        from PySide import QtCore
+
+        if error == QtCore.QProcess.FailedToStart and not self._finished:
+            self._finished = True
+            if self._on_done:
+                self._on_done(False, "", f"carbody command could not start: {self._cmd[0]!r}")
+
+
+class ReconstructJob:
+    """``carbody reconstruct`` and the parts listings of its two STEP files, one after the other
+    in :class:`CarbodyProcess` es, FreeCAD responsive throughout; then ``on_done(ok, result)``
+    with ``result`` the folder's listings ({"wireframe", "body"}) or the one-line error.
+
+    Args:
+        on_progress: called with a line a person can read as each stage starts.
+    """
+
+    STAGE_PREFIX = "carbody: stage "
+
+    def __init__(self, image, keypoints, out_dir, view=None, wheelbase_mm=None, command=None,
+                 on_progress=None, on_done=None):
+        self.out_dir = out_dir
+        self._command, self._on_progress, self._on_done = command, on_progress, on_done
+        self._steps = [("reconstruct", reconstruct_args(image, keypoints, out_dir, view, wheelbase_mm))] + [
+            (key, ["parts", os.path.join(out_dir, f"{key}.step"), "--json"]) for key in ("wireframe", "body")]
+        self.listings = {}
+        self.current = None
+
+    @property
+    def running(self):
+        return self.current is not None and self.current.running
+
+    def start(self):
+        self._next()
+        return self
+
+    def _say(self, text):
+        if self._on_progress:
+            self._on_progress(text)
+
+    def _next(self):
+        if not self._steps:
+            self.current = None
+            if self._on_done:
+                self._on_done(True, self.listings)
+            return
+        key, args = self._steps.pop(0)
+        if key != "reconstruct":
+            self._say(f"reading the {key} back")
+
+        def line(text):
+            if text.startswith(self.STAGE_PREFIX):
+                self._say(text[len("carbody: "):])
+
+        def done(ok, stdout, message):
+            if not ok:
+                self._steps = []
+                self.current = None
+                if self._on_done:
+                    self._on_done(False, message)
+                return
+            if key != "reconstruct":
+                self.listings[key] = json.loads(stdout)
+            self._next()
+
+        try:
+            self.current = CarbodyProcess(args, line, done, self._command).start()
+        except CarbodyWorkbenchError as exc:
+            self.current = None
+            if self._on_done:
+                self._on_done(False, str(exc))
 
 
 def line_up_photo(doc, image, report):

@@ -1,0 +1,312 @@
+"""The annotation page: how fast each click's update comes back, and how many clicks the guided
+page needs to reach the fit of marking everything by hand.
+
+A simulated user marks a photo through the page's own server (``carbody annotate``'s
+:class:`~carbody.annotate.server.AnnotationServer`, in this process, over HTTP on 127.0.0.1; the
+full fit in its worker process), knowing the photo's hand marks (the example's 35, or a real
+photo's file in ``../shared/realphotos``). The page starts as a user opens it: the view
+classifier guesses the view, and the user picks the nearest of the page's eight views when the
+guess is more than 30° off the view the hand marks fit (one action). Then, keypoint after
+keypoint, the one the page asks for:
+
+- a keypoint the hand marks have: **accept** its ghost (Enter) when the ghost lies within
+  ``--accept`` (1 %) of the car's length in the photo from the hand mark — as close as a careful
+  click is (the real photos' marks are 1–1.5 % off) —, else **click** it at the hand mark (or
+  drag the ghost there: one action either way);
+- a keypoint the hand marks lack (the annotator could not see it or was unsure): **H**, hidden.
+
+Every action counts one, as an accepted ghost counts one key press. The user looks at each
+update: the next action waits for the full fit (the page's second update).
+
+Definitions:
+
+- **Hand**: the number of hand marks (marking everything by hand: one click each).
+- **The same fit**: the full fit (:func:`carbody.fit.fit_wireframe`, camera distance found,
+  the session's view prior) of the marks placed so far is as close to the full fit of all the
+  hand marks as marking everything again is: its 3D keypoints (the 35 left ones, each car at
+  the hand fit's wheelbase) within τ3 on average and its projected keypoints (those the hand
+  fit shows) within τ2, where τ3, τ2 are the mean over ``--draws`` (6) re-markings of the hand
+  marks with ``--accept`` of isotropic click noise (RMS radius) of the same distances.
+- **Same at**: the first action count after which the fit is the same and stays the same to
+  the end; **settled at**: the first action count at which the page says the fit has settled
+  (every keypoint still asked predicted within 1 % of the car's length), with the fit's
+  distances there.
+- **Latency**: wall-clock from sending an edit to having its answer parsed (the update the page
+  draws; the page's own drawing adds a few ms), for edits with five marks or more (a fit). Two
+  runs: *paused* (the guided sessions above: the worker idle when the click comes) and *brisk*
+  (``--brisk N`` clicks of the example in the page's order, each sent as soon as the last
+  answer came: the worker still fitting the click before). The full fit's time is from the
+  edit to its landing. The quick fit's *processor time* (its thread's) is what the update costs
+  on an idle machine: a busy one stretches the wall clock, not that.
+
+    python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
+                                        [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
+
+Real photos are read where they are (``--data``, default ``../shared/realphotos``); a photo or
+folder that is missing is skipped with a note. Run it niced on a shared machine: the load
+averages are printed with the tables.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+DEFAULT_PHOTOS = ("cps_te66", "cps_te39", "cps_car10")
+LATENCY_TARGET_MS = 300.0
+
+
+class Client:
+    """The page's requests, from Python."""
+
+    def __init__(self, server):
+        self.url, self.token = server.url, server.token
+
+    def _call(self, path: str, body: dict | None = None):
+        data = None if body is None else json.dumps(body).encode()
+        req = urllib.request.Request(self.url + path, data=data, headers={
+            "Content-Type": "application/json", "X-Carbody-Token": self.token})
+        with urllib.request.urlopen(req, timeout=60) as r:
+            raw = r.read()
+        return json.loads(raw) if raw else None
+
+    def state(self) -> dict:
+        return self._call("api/state")
+
+    def edit(self, **body) -> tuple[dict, float]:
+        start = time.perf_counter()
+        state = self._call("api/edit", body)
+        return state, (time.perf_counter() - start) * 1000.0
+
+    def refined(self, revision: int) -> dict | None:
+        return self._call(f"api/refined?revision={revision}")
+
+
+def angular(a: float, b: float) -> float:
+    return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+class Reference:
+    """The fit of every hand mark, and how far re-marking everything moves it (τ3, τ2)."""
+
+    def __init__(self, marks: dict, image_size, prior, accept: float, draws: int, seed: int = 0):
+        from carbody.annotate import live_fit
+
+        self.image_size, self.prior = image_size, prior
+        self.fit = live_fit.fit_marks(marks, image_size, prior, quick=False).fit
+        self.shown = live_fit.visible_names(self.fit)
+        self.k3, self.k2 = self.keypoints(self.fit)
+        self.length_px = float(np.ptp(np.array(live_fit.projected_wireframe(self.fit)).reshape(-1, 2)[:, 0]))
+        rng = np.random.default_rng(seed)
+        sigma = accept * self.length_px / np.sqrt(2.0)  # per coordinate: RMS radius accept × length
+        w, h = image_size
+        spread = []
+        for _ in range(draws):
+            noisy = {n: tuple(np.clip(np.add(uv, rng.normal(0.0, sigma, 2)), 0, [w, h])) for n, uv in marks.items()}
+            fit = live_fit.fit_marks(noisy, image_size, prior, quick=False).fit
+            spread.append(self.distances(fit))
+        self.tau3, self.tau2 = (float(v) for v in np.mean(spread, axis=0))
+        self.spread = spread
+
+    def keypoints(self, fit) -> tuple[np.ndarray, np.ndarray]:
+        from carbody.annotate import live_fit
+
+        scale = self.fit.wheelbase_mm / fit.wheelbase_mm  # each car at the hand fit's wheelbase
+        k3 = np.array(list(fit.wireframe.keypoints().values())) * scale
+        points = live_fit.keypoint_positions(fit)
+        k2 = fit.project_points(np.array([points[n] for n in self.shown]))
+        return k3, k2
+
+    def distances(self, fit) -> tuple[float, float]:
+        """(3D mm, photo px) mean keypoint distances of ``fit`` from the hand fit."""
+        if fit is None:
+            return float("nan"), float("nan")
+        k3, k2 = self.keypoints(fit)
+        return float(np.mean(np.linalg.norm(k3 - self.k3, axis=1))), float(np.mean(np.linalg.norm(k2 - self.k2, axis=1)))
+
+
+def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
+    """One simulated user marking one photo (module docstring)."""
+    from carbody.annotate import live_fit
+    from carbody.annotate.server import VIEW_CHOICES, AnnotationServer
+    from carbody.annotate.session import AnnotationSession
+    from carbody.fit import read_keypoints
+
+    hand = read_keypoints(marks_file).points
+    with tempfile.TemporaryDirectory() as tmp:
+        session = AnnotationSession(image, output=Path(tmp) / "marks.json")
+        session.wait_started(120)
+        server = AnnotationServer(session)
+        server.serve_in_thread()
+        client = Client(server)
+        try:
+            ref = Reference(hand, session.image_size, session.prior, args.accept, args.draws)
+            state = client.state()
+            actions, rows, latencies, refined_s, quick_cpu = 0, [], [], [], []
+            guess = state["view"]["azimuth_deg"]
+            picked = None
+            if angular(guess, ref.fit.view.azimuth) > 30.0:
+                picked = min(VIEW_CHOICES, key=lambda a: angular(a, ref.fit.view.azimuth))
+                state, _ = client.edit(op="view", azimuth=picked)
+                actions += 1
+            accept_px = args.accept * ref.length_px
+            while state["ask"]:
+                asked = state["ask"][0]
+                ghost = state["fit"]["ghosts"].get(asked) if state["fit"]["ok"] else None
+                if asked not in hand:
+                    op, body = "hide", {"op": "hide", "name": asked}
+                elif ghost is not None and np.hypot(*np.subtract(ghost["uv"], hand[asked])) <= accept_px:
+                    op, body = "accept", {"op": "accept", "name": asked}
+                else:
+                    op, body = "click", {"op": "place", "name": asked, "uv": list(hand[asked])}
+                start = time.perf_counter()
+                state, ms = client.edit(**body)
+                actions += 1
+                fitted = state["fit"]["ok"]
+                if fitted:
+                    latencies.append(ms)
+                    quick_cpu.append(state["fit"]["cpu_seconds"] * 1000.0)
+                    if not state["refined"]:
+                        landed = client.refined(state["revision"])
+                        if landed is not None:
+                            state = landed
+                            refined_s.append(time.perf_counter() - start)
+                marks = {n: tuple(uv) for n, uv in state["marks"].items()}
+                full = live_fit.fit_marks(marks, session.image_size, session.prior, quick=False).fit \
+                    if len(marks) >= live_fit.MIN_MARKS else None
+                d3, d2 = ref.distances(full)
+                rows.append({"action": actions, "op": op, "name": asked, "marks": len(marks), "latency_ms": ms if fitted else None,
+                             "d3_mm": d3, "d2_px": d2, "same": bool(d3 <= ref.tau3 and d2 <= ref.tau2),
+                             "settled": bool(state["settled"])})
+                if args.verbose:
+                    print(f"  {name} {actions:2d} {op:6s} {asked:28s} {len(marks):2d} marks  {ms:6.0f} ms  "
+                          f"3D {d3:6.1f} mm  photo {d2:5.1f} px{'  same' if rows[-1]['same'] else ''}"
+                          f"{'  settled' if state['settled'] else ''}", flush=True)
+        finally:
+            server.shutdown()
+            server.server_close()
+            session.close()
+    same_at = None
+    for i in range(len(rows) - 1, -1, -1):
+        if not rows[i]["same"]:
+            break
+        same_at = rows[i]["action"]
+    settled = next((r for r in rows if r["settled"]), None)
+    return {"photo": name, "hand": len(hand), "view_guess_deg": guess, "view_fit_deg": float(ref.fit.view.azimuth),
+            "view_picked_deg": picked, "car_length_px": ref.length_px, "tau3_mm": ref.tau3, "tau2_px": ref.tau2,
+            "same_at": same_at, "first_same_at": next((r["action"] for r in rows if r["same"]), None),
+            "settled_at": settled and settled["action"],
+            "settled_d3_mm": settled and settled["d3_mm"], "settled_d2_px": settled and settled["d2_px"],
+            "actions_to_end": actions, "accepted": sum(r["op"] == "accept" for r in rows),
+            "hidden": sum(r["op"] == "hide" for r in rows), "latency_ms": latencies, "quick_fit_cpu_ms": quick_cpu, "refined_s": refined_s,
+            "rows": rows}
+
+
+def brisk_latencies(clicks: int) -> list[float]:
+    """The example's marks clicked in the page's order as fast as the answers come."""
+    from carbody.annotate.server import AnnotationServer
+    from carbody.annotate.session import AnnotationSession
+    from carbody.fit import read_keypoints
+
+    hand = read_keypoints(REPO / "examples" / "car_keypoints.json").points
+    with tempfile.TemporaryDirectory() as tmp:
+        session = AnnotationSession(REPO / "examples" / "car.png", output=Path(tmp) / "marks.json")
+        session.wait_started(120)
+        server = AnnotationServer(session)
+        server.serve_in_thread()
+        client = Client(server)
+        out = []
+        try:
+            state = client.state()
+            for _ in range(clicks):
+                if not state["ask"]:
+                    break
+                name = state["ask"][0]
+                state, ms = client.edit(op="place", name=name, uv=list(hand[name]))
+                if state["fit"]["ok"]:
+                    out.append(ms)
+        finally:
+            server.shutdown()
+            server.server_close()
+            session.close()
+    return out
+
+
+def percentiles(values: list[float]) -> str:
+    if not values:
+        return "—"
+    v = np.array(values)
+    return (f"median {np.median(v):.0f}, p90 {np.percentile(v, 90):.0f}, max {v.max():.0f} ms; "
+            f"{np.mean(v <= LATENCY_TARGET_MS) * 100:.0f} % within {LATENCY_TARGET_MS:.0f} ms (n = {len(v)})")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--photos", nargs="*", default=list(DEFAULT_PHOTOS), help="real photos by name (cps_*)")
+    parser.add_argument("--data", type=Path, default=REPO.parent / "shared" / "realphotos",
+                        help="the real photos' folder (images/, keypoints/)")
+    parser.add_argument("--draws", type=int, default=6, help="re-markings for the same-fit tolerance")
+    parser.add_argument("--accept", type=float, default=0.01,
+                        help="a careful click's error, as a fraction of the car's length in the photo")
+    parser.add_argument("--brisk", type=int, default=20, help="clicks of the brisk latency run (0: none)")
+    parser.add_argument("--json", type=Path, default=None, help="write every figure here")
+    parser.add_argument("--verbose", "-v", action="store_true", help="print every action")
+    args = parser.parse_args(argv)
+
+    load = os.getloadavg()
+    cases = [("example", REPO / "examples" / "car.png", REPO / "examples" / "car_keypoints.json")]
+    if args.photos and not args.data.is_dir():
+        print(f"note: {args.data} is not here: the real photos are skipped")
+    else:
+        for name in args.photos:
+            image, marks = args.data / "images" / f"{name}.jpg", args.data / "keypoints" / f"{name}.json"
+            if image.is_file() and marks.is_file():
+                cases.append((name, image, marks))
+            else:
+                print(f"note: {name} is not in {args.data}: skipped")
+    results = []
+    for name, image, marks in cases:
+        started = time.perf_counter()
+        results.append(guided_session(name, image, marks, args))
+        results[-1]["wall_s"] = time.perf_counter() - started
+    brisk = brisk_latencies(args.brisk) if args.brisk else []
+    load_end = os.getloadavg()
+
+    print(f"\nmachine: {os.cpu_count()} cores; load average {load[0]:.1f} at the start, {load_end[0]:.1f} at the end")
+    print("\n| photo | hand marks | view guessed → fitted (picked) | same fit at | first same | settled at (3D mm / photo px there) "
+          "| actions to the end (accepted, hidden) | τ3 mm / τ2 px |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in results:
+        same = "never" if r["same_at"] is None else f"{r['same_at']} ({r['same_at'] / r['hand']:.0%})"
+        settled = "never" if r["settled_at"] is None else \
+            f"{r['settled_at']} ({r['settled_d3_mm']:.0f} / {r['settled_d2_px']:.1f})"
+        picked = "" if r["view_picked_deg"] is None else f" (picked {r['view_picked_deg']:.0f}°)"
+        print(f"| {r['photo']} | {r['hand']} | {r['view_guess_deg']:.0f}° → {r['view_fit_deg']:.0f}°{picked} | {same} | "
+              f"{r['first_same_at']} | {settled} | {r['actions_to_end']} ({r['accepted']}, {r['hidden']}) | "
+              f"{r['tau3_mm']:.0f} / {r['tau2_px']:.1f} |")
+    paused = [ms for r in results for ms in r["latency_ms"]]
+    refined = [s for r in results for s in r["refined_s"]]
+    print(f"\nlatency, paused clicks: {percentiles(paused)}")
+    print(f"latency, brisk clicks:  {percentiles(brisk)}")
+    cpu = [ms for r in results for ms in r["quick_fit_cpu_ms"]]
+    print(f"the quick fit's processor time, paused clicks: {percentiles(cpu)}")
+    if refined:
+        print(f"full fit landed after: median {np.median(refined):.2f} s, max {max(refined):.2f} s")
+    if args.json:
+        args.json.write_text(json.dumps({"load_start": load, "load_end": load_end, "cases": results,
+                                         "brisk_latency_ms": brisk}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
