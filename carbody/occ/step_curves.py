@@ -289,12 +289,19 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
         leaves += _xcaf_parts(shape_tool, roots.Value(i))
     product = _label_name(roots.Value(1)) if roots.Length() else ""
     by_part = [(name, shape) for name, shape in leaves if name and len(sub_shapes(shape, "edge")) == 1]
-    curves = [edge_curve(sub_shapes(shape, "edge")[0], name) for name, shape in by_part]
+    curves = [edge_curve(sub_shapes(shape, "edge")[0], name, missing_ok=True) for name, shape in by_part]
     n_edges = sum(len(sub_shapes(shape, "edge")) for _, shape in leaves)
-    if len(by_part) < len(leaves):
-        # parts holding several curves: their names are on the curves themselves
-        found = {c.name for c in curves}
-        curves += [c for c in _named_items(reader.ChangeReader().StepModel(), reader, path) if c.name not in found]
+    if len(by_part) < len(leaves) or None in curves:
+        # parts holding several curves (or none, or a curve collapsed to a point, which OCCT
+        # reads as an edge without geometry): their names are on the curves themselves
+        raw = _named_items(reader.ChangeReader().StepModel(), reader, path)
+        first = {}
+        for c in raw:
+            first.setdefault(c.name, c)
+        curves = [c if c is not None else first.get(name) for c, (name, _) in zip(curves, by_part)]
+        found = {c.name for c in curves if c is not None}
+        curves = [c for c in curves if c is not None] + [c for c in raw if c.name not in found]
+        n_edges = max(n_edges, len(curves))
     if not product:
         product = _first_product_name(reader.ChangeReader().StepModel())
     curves += [NamedCurve("", np.zeros((0, 3)))] * max(0, n_edges - len(curves))
@@ -355,8 +362,9 @@ def _entry(label) -> str:
     return entry.ToCString()
 
 
-def edge_curve(edge, name: str) -> NamedCurve:
-    """The NamedCurve of a TopoDS_Edge, in its own direction and over its own range."""
+def edge_curve(edge, name: str, missing_ok: bool = False) -> NamedCurve | None:
+    """The NamedCurve of a TopoDS_Edge, in its own direction and over its own range; None for an
+    edge without 3D geometry with ``missing_ok``."""
     from OCP.BRep import BRep_Tool
     from OCP.BRepAdaptor import BRepAdaptor_Curve
     from OCP.Geom import Geom_TrimmedCurve
@@ -364,6 +372,8 @@ def edge_curve(edge, name: str) -> NamedCurve:
 
     curve = BRep_Tool.Curve_s(edge, 0.0, 0.0)
     if curve is None:
+        if missing_ok:
+            return None
         raise TemplateError(f"curve {name!r} has no 3D geometry")
     adaptor = BRepAdaptor_Curve(edge)
     first, last = adaptor.FirstParameter(), adaptor.LastParameter()

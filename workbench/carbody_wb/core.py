@@ -1,9 +1,11 @@
 """carbody inside FreeCAD, without the GUI: run the ``carbody`` command, bring its STEP results in.
 
-FreeCAD has its own OCCT build, so carbody runs as a separate process (the command is set in
-Preferences > carbody, parameter ``CarbodyCommand``, or ``$CARBODY_COMMAND``). Curve and region
-names come from ``carbody parts FILE --json``, matched to the shapes FreeCAD reads by position,
-so the import does not depend on the order a STEP reader lists things in.
+FreeCAD has its own OCCT build, so carbody runs as a separate process, found as
+:func:`carbody_command` says. A reconstruction comes in as parametric objects
+(:mod:`carbody_wb.model`: curves with editable poles, a body recomputed from them); plain STEP
+files as named Part objects (:func:`import_step_parts`), their curve and region names from
+``carbody parts FILE --json``, matched to the shapes FreeCAD reads by position, so the import
+does not depend on the order a STEP reader lists things in.
 """
 import json
 import math
@@ -22,10 +24,36 @@ class CarbodyWorkbenchError(Exception):
     """A one-line reason the workbench could not do what was asked."""
 
 
+#: The workbench's own folder, symlinks resolved (a link in FreeCAD's Mod/ to a checkout).
+WORKBENCH_DIR = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
+
+
 def carbody_command():
-    """The carbody command as an argument list: ``$CARBODY_COMMAND`` or the preference."""
-    text = os.environ.get("CARBODY_COMMAND") or FreeCAD.ParamGet(PARAM_PATH).GetString("CarbodyCommand", "carbody")
-    return shlex.split(text)
+    """The carbody command as an argument list, the first of: ``$CARBODY_COMMAND``; the
+    preference (Preferences > carbody, ``CarbodyCommand``; the **carbody command…** button);
+    the ``carbody`` of a virtual environment (``.venv`` or ``venv``) in the checkout the
+    workbench was linked or copied from (:func:`venv_carbody`); ``carbody`` on ``PATH``."""
+    text = os.environ.get("CARBODY_COMMAND") or FreeCAD.ParamGet(PARAM_PATH).GetString("CarbodyCommand", "")
+    if text.strip():
+        return shlex.split(text)
+    found = venv_carbody() or shutil.which("carbody")
+    return [found or "carbody"]
+
+
+def venv_carbody(start=None):
+    """The ``carbody`` program of a virtual environment beside the workbench: ``.venv/bin`` or
+    ``venv/bin`` (``Scripts`` on Windows) in its folder or any folder above it; None if none."""
+    here = os.path.realpath(start or WORKBENCH_DIR)
+    while True:
+        for venv in (".venv", "venv"):
+            for exe in (os.path.join(venv, "bin", "carbody"), os.path.join(venv, "Scripts", "carbody.exe")):
+                path = os.path.join(here, exe)
+                if os.path.isfile(path) and os.access(path, os.X_OK):
+                    return path
+        parent = os.path.dirname(here)
+        if parent == here:
+            return None
+        here = parent
 
 
 def set_carbody_command(text):
@@ -99,6 +127,11 @@ def photo_camera(placement):
             "height_angle": 2.0 * math.atan(1.1 * (height / 2 + offset) / abs((centre - eye).dot(back)))}
 
 
+def match_faces(faces, entries):
+    """For each FreeCAD face, the index of its entry in a carbody face listing (``centre``s)."""
+    return _nearest([FreeCAD.Vector(*e["centre"]) for e in entries], [f.CenterOfMass for f in faces])
+
+
 def _nearest(centres, targets):
     """Greedy nearest assignment: for each target centre, the index of the closest free centre."""
     free = set(range(len(centres)))
@@ -147,24 +180,60 @@ def import_step_parts(doc, step_path, group_name, command=None):
     return group
 
 
-def reconstruct(doc, image, keypoints, out_dir, view=None, wheelbase_mm=None, command=None):
-    """Run ``carbody reconstruct`` and bring the wireframe and body into ``doc``.
-
-    Returns:
-        (wireframe group, body group, report dict).
-    """
-    args = ["reconstruct", image, "--keypoints", keypoints, "-o", out_dir]
+def reconstruct_args(image, keypoints, out_dir, view=None, wheelbase_mm=None):
+    """The arguments of the ``carbody reconstruct`` run behind :func:`reconstruct`."""
+    args = ["reconstruct", os.path.abspath(image), "--keypoints", os.path.abspath(keypoints), "-o",
+            os.path.abspath(out_dir)]
     if view is not None:
         args += ["--view", f"{float(view):g}"]
     if wheelbase_mm is not None:
         args += ["--wheelbase", f"{float(wheelbase_mm):g}"]
-    run_carbody(args, command)
-    wire = import_step_parts(doc, os.path.join(out_dir, "wireframe.step"), "Wireframe", command)
-    body = import_step_parts(doc, os.path.join(out_dir, "body.step"), "Body", command)
+    return args
+
+
+def reconstruct(doc, image, keypoints, out_dir, view=None, wheelbase_mm=None, command=None):
+    """Run ``carbody reconstruct`` (waiting for it: the GUI command runs it in a QProcess
+    instead) and bring the car into ``doc`` (:func:`import_reconstruction`).
+
+    Returns:
+        (wireframe group, body group, report dict).
+    """
+    run_carbody(reconstruct_args(image, keypoints, out_dir, view, wheelbase_mm), command)
+    return import_reconstruction(doc, image, out_dir, command)
+
+
+def import_reconstruction(doc, image, out_dir, command=None):
+    """A ``carbody reconstruct`` folder into ``doc``: the car as parametric objects
+    (:func:`import_car`) and the photo lined up with the fitted camera.
+
+    Returns:
+        (wireframe group, body group, report dict).
+    """
+    wire, body = import_car(doc, os.path.join(out_dir, "wireframe.step"), command)
     with open(os.path.join(out_dir, "report.json")) as f:
         report = json.load(f)
-    line_up_photo(doc, image, report)
+    if image:
+        line_up_photo(doc, image, report)
     return wire, body, report
+
+
+def import_car(doc, wireframe_path, command=None):
+    """A wireframe file (carbody's STEP or JSON, or a STEP saved by FreeCAD, CadQuery or build123d
+    with the curves named) into ``doc`` as parametric objects (:func:`carbody_wb.model.add_car`).
+
+    Returns:
+        (wireframe group, body group).
+    """
+    import tempfile
+
+    from carbody_wb import model
+
+    with tempfile.TemporaryDirectory(prefix="carbody-fc-") as tmp:
+        path = os.path.join(tmp, "wire.json")
+        run_carbody(["wireframe", os.path.abspath(wireframe_path), "-o", path], command)
+        with open(path) as f:
+            wire_json = json.load(f)
+    return model.add_car(doc, wire_json)
 
 
 def line_up_photo(doc, image, report):
