@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -216,3 +217,128 @@ def test_carbody_freecad_builds_a_document_or_says_freecad_is_missing(tmp_path):
     lines = missing.stderr.strip().splitlines()
     assert missing.returncode == 2 and len(lines) == 1 and "FreeCAD is not installed" in lines[0]
     assert not (tmp_path / "none.FCStd").exists()
+
+
+def test_the_car_comes_in_parametric_and_the_body_follows_a_moved_junction(tmp_path, topology):
+    """One freecadcmd run: a template as parametric objects (125 curves with editable poles, the
+    CarBody shell and 13 coloured regions); the roof-front junction moved up 50 mm as a user
+    moving one pole, its curves and mirror twin follow and the recomputed shell is valid and
+    passes through the moved curves within 0.01 mm; FreeCAD's own STEP export of the curves reads
+    back in carbody; a document saved and reopened still carries edits; the junction dragged far
+    is one line in the report view naming the folded region and its curves."""
+    from carbody.templates import templates_dir
+    from carbody.wireframe import read_wireframe
+
+    step = templates_dir() / "volvo_v60.step"
+    exported, saved = tmp_path / "freecad_export.step", tmp_path / "car.FCStd"
+    touched = [c.name for c in topology.curves if "roof_front_corner" in (c.start, c.end)]
+    script = f"""
+import json, FreeCAD, Part, Import
+from carbody_wb import core, model
+doc = FreeCAD.newDocument("t")
+wire, body = core.import_car(doc, {str(step)!r})
+shell = doc.getObject("CarBody")
+curves = {{o.CurveName: o for o in wire.Group}}
+out = {{"curves": len(curves), "labels_are_names": all(o.Label == n for n, o in curves.items()),
+        "regions": sorted(o.Label for o in body.Group if o is not shell),
+        "region_colours": len({{tuple(o.Colour) for o in body.Group if o is not shell}}),
+        "faces": len(shell.Shape.Faces), "colours": len(shell.FaceColours), "status0": shell.Status,
+        "valid0": shell.Shape.isValid()}}
+before = curves["roof_side_1"].Poles[0]
+# the user moves one pole: the end of a_pillar_2 on the roof's front corner
+poles = list(curves["a_pillar_2"].Poles)
+poles[3] = poles[3] + FreeCAD.Vector(0, 0, 50)
+curves["a_pillar_2"].Poles = poles
+ends = [curves["windshield_top"].Poles[3], curves["a_pillar_2"].Poles[3], curves["roof_side_1"].Poles[0]]
+twins = [curves["windshield_top_right"].Poles[3], curves["a_pillar_2_right"].Poles[3], curves["roof_side_1_right"].Poles[0]]
+out["joined"] = max((p - ends[0]).Length for p in ends)
+out["mirrored"] = max((FreeCAD.Vector(-p.x, p.y, p.z) - ends[0]).Length for p in twins)
+out["raised"] = ends[0].z - before.z
+doc.recompute()
+out["valid"] = shell.Shape.isValid() and len(shell.Shape.Shells) == 1
+out["status"], out["folds"] = shell.Status, list(shell.Folds)
+names = {touched!r}
+far = 0.0
+for n in names + [n + "_right" for n in names]:
+    e = curves[n].Shape.Edges[0]
+    for k in range(11):
+        p = e.valueAt(e.FirstParameter + k / 10.0 * (e.LastParameter - e.FirstParameter))
+        far = max(far, shell.Shape.distToShape(Part.Vertex(p))[0])
+out["off_curve_mm"] = far
+Import.export(wire.Group, {str(exported)!r})
+doc.saveAs({str(saved)!r})
+FreeCAD.closeDocument(doc.Name)
+doc = FreeCAD.openDocument({str(saved)!r})
+curves = {{o.CurveName: o for o in doc.Objects if hasattr(o, "CurveName")}}
+model.move_junction(doc, "roof_front_corner", (0, 800, 0))  # back over the roof
+out["reopened_follows"] = (curves["roof_side_1_right"].Poles[0].y - curves["a_pillar_2"].Poles[3].y)
+doc.recompute()
+shell = doc.getObject("CarBody")
+out["far_folds"], out["far_status"] = list(shell.Folds), shell.Status
+print("RESULT " + json.dumps(out))
+"""
+    path = tmp_path / "fc_script.py"
+    path.write_text(f"import sys\nsys.path.insert(0, {str(WORKBENCH)!r})\n" + script)
+    proc = subprocess.run(["freecadcmd", str(path)], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "CARBODY_COMMAND": f"{sys.executable} -m carbody"})
+    lines = [line for line in proc.stdout.splitlines() if line.startswith("RESULT ")]
+    assert lines, proc.stdout[-3000:] + proc.stderr[-2000:]
+    r = json.loads(lines[0][len("RESULT "):])
+    assert r["curves"] == 125 and r["labels_are_names"]
+    assert r["regions"] == sorted(reg.name for reg in topology.regions) and r["region_colours"] == 13
+    assert r["valid0"] and r["colours"] == r["faces"] and r["status0"].startswith("valid")
+    assert r["joined"] < 1e-9 and r["mirrored"] < 1e-9 and r["raised"] == pytest.approx(50.0)
+    assert r["valid"] and r["folds"] == [] and r["status"].startswith("valid")
+    assert r["off_curve_mm"] <= 0.01
+    # FreeCAD's STEP export of the curve objects (a product per object) reads back as moved
+    moved = read_wireframe(exported)
+    kp = moved.keypoints()["roof_front_corner"]
+    assert kp[2] == pytest.approx(read_wireframe(step).keypoints()["roof_front_corner"][2] + 50.0)
+    assert abs(r["reopened_follows"]) < 1e-9
+    assert r["far_folds"] and r["far_status"] == r["far_folds"][0]
+    assert r["far_status"].startswith("region ") and " folds: " in r["far_status"] and "_" in r["far_status"]
+    # the report view: one line per folded region
+    report_view = [line for line in (proc.stdout + proc.stderr).replace("\t", "\n").splitlines()
+                   if line.startswith("carbody: region ")]
+    assert report_view and report_view[0] == "carbody: " + r["far_folds"][0]
+
+
+def test_freecad_shows_the_curve_names_carbody_writes(tmp_path, templates):
+    """FreeCAD's STEP import (as its GUI does, a part per product) names every curve object."""
+    from carbody.wireframe import write_wireframe
+
+    _, wf = templates[0]
+    path = write_wireframe(tmp_path / "car.step", wf, both_halves=True)
+    result = run_freecad(f"""
+import json, FreeCAD, Import
+FreeCAD.ParamGet("User parameter:BaseApp/Preferences/Mod/Import").SetBool("UseLinkGroup", False)
+doc = FreeCAD.newDocument("t")
+Import.insert({str(path)!r}, "t")
+print("RESULT " + json.dumps(sorted(o.Label for o in doc.Objects if o.TypeId == "Part::Feature")))
+""", tmp_path)
+    assert result == sorted(n for n, _ in wf.named_curves(both_halves=True))
+
+
+def test_the_workbench_finds_carbody_in_the_venv_it_was_installed_from(tmp_path):
+    """No $CARBODY_COMMAND, no preference: the carbody of a .venv in the checkout the workbench
+    folder was linked from comes before PATH."""
+    checkout = tmp_path / "checkout"
+    (checkout / ".venv" / "bin").mkdir(parents=True)
+    fake = checkout / ".venv" / "bin" / "carbody"
+    fake.write_text("#!/bin/sh\necho fake\n")
+    fake.chmod(0o755)
+    shutil.copytree(WORKBENCH, checkout / "workbench", ignore=shutil.ignore_patterns("__pycache__"))
+    mod = tmp_path / "Mod"
+    mod.mkdir()
+    (mod / "carbody").symlink_to(checkout / "workbench")  # FreeCAD's Mod/ -> the checkout
+    result = run_freecad(f"""
+import json, os, sys, FreeCAD
+sys.path.insert(0, {str(mod / "carbody")!r})
+from carbody_wb import core
+os.environ.pop("CARBODY_COMMAND", None)
+FreeCAD.ParamGet(core.PARAM_PATH).SetString("CarbodyCommand", "")
+found = core.carbody_command()
+os.environ["CARBODY_COMMAND"] = "/opt/other/carbody --flag"
+print("RESULT " + json.dumps([found, core.carbody_command(), core.venv_carbody("/")]))
+""", tmp_path)
+    assert result == [[str(fake)], ["/opt/other/carbody", "--flag"], None]

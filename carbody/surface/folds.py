@@ -12,7 +12,8 @@ finds nothing wrong. Two measures, on the Bezier nets (numpy, no OCCT):
   bends less than 90° (its sides turn at most 50°, ribs are added where they would), so a sound
   face has none; the templates' wheel arches fold a sliver near the sill (up to 0.7 %), the
   faces of a region pulled past itself 2–25 %. A region folds when its share passes
-  :data:`~carbody.tolerances.FOLD_AREA_SHARE` (2 %).
+  :data:`~carbody.tolerances.FOLD_AREA_SHARE` (2 %). (A region bent back smoothly over several
+  faces, a U-turn with no crease, is not a fold by this measure.)
 * **outline crossing**: two curves of the region's loop that share no junction pass within
   :data:`~carbody.tolerances.DEGENERATE_LENGTH_REL` of the loop's length of each other (the
   tolerance at which two junctions are one): no surface bounded by that loop can be a sheet.
@@ -81,7 +82,10 @@ def face_folded_area(nets: np.ndarray, n: int = FOLD_GRID) -> tuple[np.ndarray, 
     mean = np.einsum("fmd,m->fd", j, weight)
     size = np.linalg.norm(j, axis=2) * weight
     turned = np.einsum("fmd,fd->fm", j, mean) < 0
-    return (size * turned).sum(axis=1), size.sum(axis=1)
+    folded = (size * turned).sum(axis=1)
+    # a face creased exactly in half has no mean normal to turn against: half of it is turned
+    balanced = np.linalg.norm(mean, axis=1) <= 1e-9 * size.sum(axis=1)
+    return np.where(balanced, size.sum(axis=1) / 2, folded), size.sum(axis=1)
 
 
 def _curve_names(face: FacePatch, topology: Topology) -> list[str]:

@@ -1,4 +1,6 @@
-"""The workbench's toolbar commands: load photo, load keypoints, reconstruct, preferences."""
+"""The workbench's toolbar commands: load photo, load keypoints, reconstruct, move junction,
+preferences. Reconstruct runs ``carbody reconstruct`` in a QProcess: FreeCAD stays responsive,
+the run's progress shows in the status bar and its messages in the report view."""
 import os
 
 import FreeCAD
@@ -64,20 +66,101 @@ class LoadKeypoints(_Command):
 class Reconstruct(_Command):
     icon = "reconstruct.svg"
     menu = "Reconstruct car body"
-    tooltip = "Run carbody on the photo and keypoints; bring the wireframe and body in as Part objects"
+    tooltip = ("Run carbody on the photo and keypoints (in the background); bring the car in as "
+               "curves with editable poles and a body recomputed from them")
+    process = None
+
+    def IsActive(self):
+        return self.process is None  # one run at a time
 
     def run(self):
-        from PySide import QtGui
+        from PySide import QtCore, QtGui
 
         params = FreeCAD.ParamGet(core.PARAM_PATH)
         image, keypoints = params.GetString("LastImage", ""), params.GetString("LastKeypoints", "")
         if not image or not keypoints:
             raise core.CarbodyWorkbenchError("load a photo and its keypoints first")
         out = QtGui.QFileDialog.getExistingDirectory(None, "Output folder")
-        if out:
-            _, _, report = core.reconstruct(_doc(), image, keypoints, out)
-            FreeCAD.Console.PrintMessage(core.summary(out))
+        if not out:
+            return
+        cmd = core.resolve_command()
+        process = QtCore.QProcess()
+        process.setProgram(cmd[0])
+        process.setArguments([*cmd[1:], *core.reconstruct_args(image, keypoints, out)])
+        self.process, self.doc, self.image, self.out, self.tail = process, _doc(), image, out, ""
+        process.readyReadStandardError.connect(self._progress)
+        process.readyReadStandardOutput.connect(self._output)
+        process.finished.connect(self._finished)
+        process.errorOccurred.connect(self._failed)
+        _status("carbody: reconstructing ...")
+        FreeCAD.Console.PrintMessage(f"carbody: reconstructing {image} into {out}\n")
+        process.start()
+
+    def _progress(self):
+        """Progress bars redraw with a carriage return: the status bar shows the latest."""
+        text = bytes(self.process.readAllStandardError()).decode(errors="replace")
+        self.tail = (self.tail + text)[-4000:]
+        pieces = [p.strip() for p in text.replace("\r", "\n").split("\n") if p.strip()]
+        if pieces:
+            _status(f"carbody: {pieces[-1]}")
+
+    def _output(self):
+        FreeCAD.Console.PrintMessage(bytes(self.process.readAllStandardOutput()).decode(errors="replace"))
+
+    def _failed(self, error):
+        from PySide import QtCore
+
+        if error == QtCore.QProcess.FailedToStart:  # no finished() follows
+            FreeCAD.Console.PrintError(f"carbody: could not start {self.process.program()!r}\n")
+            self._reset()
+
+    def _finished(self, code, _status_code=None):
+        try:
+            if code != 0:
+                lines = [line for line in self.tail.replace("\r", "\n").splitlines() if line.strip()]
+                raise core.CarbodyWorkbenchError(lines[-1] if lines else f"carbody exited with code {code}")
+            _status("carbody: bringing the car in ...")
+            _, _, report = core.import_reconstruction(self.doc, self.image, self.out)
+            FreeCAD.Console.PrintMessage(core.summary(self.out))
             _look_as_the_photo(report["fit"].get("photo_plane"))
+            _status("carbody: done")
+        except core.CarbodyWorkbenchError as exc:
+            FreeCAD.Console.PrintError(f"carbody: {exc}\n")
+            _status("carbody: failed (see the report view)")
+        finally:
+            self._reset()
+
+    def _reset(self):
+        self.process = None
+        FreeCADGui.updateCommands()
+
+
+def _status(text):
+    FreeCADGui.getMainWindow().statusBar().showMessage(text)
+
+
+class MoveJunction(_Command):
+    icon = "carbody.svg"
+    menu = "Move junction..."
+    tooltip = ("Move the junction at the selected curve end by dx, dy, dz (mm): the curves meeting "
+               "there and the mirror half follow; recompute to update the body")
+
+    def run(self):
+        from PySide import QtGui
+
+        picked = [(s.Object, n) for s in FreeCADGui.Selection.getSelectionEx() for n in s.SubElementNames
+                  if hasattr(s.Object, "CurveName") and n.startswith("Vertex")]
+        if not picked:
+            raise core.CarbodyWorkbenchError("select the end (a vertex) of a carbody curve first")
+        obj, vertex = picked[0]
+        junction = obj.StartJunction if vertex == "Vertex1" else obj.EndJunction
+        text, ok = QtGui.QInputDialog.getText(None, "carbody", f"move {junction} by dx, dy, dz (mm):", text="0, 0, 50")
+        if ok and text:
+            from carbody_wb import model
+
+            delta = [float(v) for v in text.replace(";", ",").split(",")]
+            model.move_junction(obj.Document, junction, delta)
+            obj.Document.recompute()
 
 
 def _look_as_the_photo(placement):
@@ -112,7 +195,8 @@ class Preferences(_Command):
 def register():
     """Add the commands to FreeCAD; returns their names in toolbar order."""
     commands = {"Carbody_LoadPhoto": LoadPhoto(), "Carbody_LoadKeypoints": LoadKeypoints(),
-                "Carbody_Reconstruct": Reconstruct(), "Carbody_Preferences": Preferences()}
+                "Carbody_Reconstruct": Reconstruct(), "Carbody_MoveJunction": MoveJunction(),
+                "Carbody_Preferences": Preferences()}
     for name, command in commands.items():
         FreeCADGui.addCommand(name, command)
     return list(commands)

@@ -60,14 +60,23 @@ def set_carbody_command(text):
     FreeCAD.ParamGet(PARAM_PATH).SetString("CarbodyCommand", text)
 
 
-def run_carbody(args, command=None):
-    """Run ``carbody ARGS``; its one-line error becomes a :class:`CarbodyWorkbenchError`."""
+def resolve_command(command=None):
+    """The carbody command with its program's full path.
+
+    Raises:
+        CarbodyWorkbenchError: the program is not there.
+    """
     cmd = list(command or carbody_command())
     exe = cmd[0] if os.path.isabs(cmd[0]) else shutil.which(cmd[0])
     if not exe or not os.path.exists(exe):
         raise CarbodyWorkbenchError(
             f"carbody command not found: {cmd[0]!r} (set Preferences > carbody > CarbodyCommand or $CARBODY_COMMAND)")
-    proc = subprocess.run([exe, *cmd[1:], *map(str, args)], capture_output=True, text=True)
+    return [exe, *cmd[1:]]
+
+
+def run_carbody(args, command=None):
+    """Run ``carbody ARGS``; its one-line error becomes a :class:`CarbodyWorkbenchError`."""
+    proc = subprocess.run([*resolve_command(command), *map(str, args)], capture_output=True, text=True)
     if proc.returncode != 0:
         lines = [line for line in proc.stderr.strip().splitlines() if line.strip()]
         raise CarbodyWorkbenchError(lines[-1] if lines else f"carbody exited with code {proc.returncode}")
