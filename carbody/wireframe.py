@@ -101,15 +101,20 @@ class Wireframe:
             cp[topo.junction_groups()[junction]] = cp[POINTS_PER_CURVE * c.index + row]
         return Wireframe(self.name, _on_symmetry_plane(cp, topo))
 
-    def with_junction_moved(self, junction: str, delta_mm) -> "Wireframe":
-        """A copy with one junction (every curve end on it) moved by ``delta_mm`` (3,), mm; a
-        right-half name (``*_right``) moves the left twin mirrored; a junction on the symmetry
-        plane moves in y and z only. The curves' inner poles stay where they are."""
+    def with_junction_moved(self, junction: str, delta_mm, handles: bool = True) -> "Wireframe":
+        """A copy with one junction moved by ``delta_mm`` (3,), mm, as a node of a Bezier path
+        moves: every curve's end pole on it and, with ``handles``, the pole next to it, so the
+        curves leave the junction in the directions they did (without, only the end poles
+        move). A right-half name (``*_right``) moves the left twin mirrored; a junction on the
+        symmetry plane moves in y and z only."""
         topo = load_topology()
         name, mirror = _left_junction(junction, topo)
         delta = np.asarray(delta_mm, float) * (MIRROR if mirror else 1.0)
         cp = self.control_points.copy()
-        cp[topo.junction_groups()[name]] += delta
+        ends = np.asarray(topo.junction_groups()[name])
+        cp[ends] += delta
+        if handles:  # the pole beside each end pole: row 1 of a start, row 2 of an end
+            cp[np.where(ends % POINTS_PER_CURVE == 0, ends + 1, ends - 1)] += delta
         return Wireframe(self.name, _on_symmetry_plane(cp, topo))
 
     def with_curves_moved(self, curves, delta_mm) -> "Wireframe":

@@ -35,7 +35,9 @@ def test_moving_a_junction_keeps_its_curves_joined_and_the_car_symmetric(car, to
     groups = topology.junction_groups()
     p = moved.control_points
     assert np.allclose(p[groups["roof_front_corner"]], car.control_points[groups["roof_front_corner"]][0] + [0, 0, 50])
-    assert np.count_nonzero(np.abs(p - car.control_points).max(axis=1)) == len(groups["roof_front_corner"])
+    assert np.count_nonzero(np.abs(p - car.control_points).max(axis=1)) == 2 * len(groups["roof_front_corner"])
+    poles_only = car.with_junction_moved("roof_front_corner", [0, 0, 50], handles=False).control_points
+    assert np.count_nonzero(np.abs(poles_only - car.control_points).max(axis=1)) == len(groups["roof_front_corner"])
     # a junction on the symmetry plane moves in its plane only; the right twin mirrors
     centre = car.with_junction_moved("roof_front_centre", [30, 0, 20]).control_points[groups["roof_front_centre"]]
     assert np.all(centre[:, 0] == 0)

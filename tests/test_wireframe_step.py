@@ -73,7 +73,10 @@ def test_carbody_writes_one_named_part_per_curve_and_reads_it_back(car, tmp_path
 
 
 def test_gmsh_shows_every_curve_by_name(car, tmp_path):
-    gmsh = pytest.importorskip("gmsh")
+    try:
+        import gmsh
+    except (ImportError, OSError) as exc:  # the wheel, or the system libraries it loads
+        pytest.skip(f"gmsh cannot be imported: {exc}")
     path = write_wireframe(tmp_path / "car.step", car, both_halves=True)
     gmsh.initialize()
     try:

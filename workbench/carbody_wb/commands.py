@@ -131,8 +131,7 @@ class Reconstruct(_Command):
             self._reset()
 
     def _reset(self):
-        self.process = None
-        FreeCADGui.updateCommands()
+        self.process = None  # IsActive again: the toolbar button comes back on its next update
 
 
 def _status(text):
@@ -159,7 +158,8 @@ class MoveJunction(_Command):
             from carbody_wb import model
 
             delta = [float(v) for v in text.replace(";", ",").split(",")]
-            model.move_junction(obj.Document, junction, delta)
+            groups = [o for o in obj.InList if o.isDerivedFrom("App::DocumentObjectGroup")]
+            model.move_junction(groups[0] if groups else obj.Document, junction, delta)
             obj.Document.recompute()
 
 

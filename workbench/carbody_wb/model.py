@@ -140,22 +140,50 @@ def _set_poles(obj, poles):
         obj.Poles = poles
 
 
-def move_junction(doc, junction, delta):
-    """Move one junction by ``delta`` (x, y, z mm) as a user dragging a curve's end pole would:
-    the first curve found ending on it is edited, the rest follows (:func:`carry_edit`).
+def move_junction(where, junction, delta, handles=True):
+    """Move one junction by ``delta`` (x, y, z mm), as a node of a Bezier path moves: every
+    curve's end pole on it and, with ``handles``, the pole next to it (so the curves leave the
+    junction in the directions they did), on both halves; the symmetry plane is kept.
+
+    Args:
+        where: a car's wireframe group, or a document (every car in it).
 
     Returns:
-        the curve object edited.
+        the curve objects edited.
     """
     delta = FreeCAD.Vector(*delta)
-    for obj in doc.Objects:
-        if hasattr(obj, "CurveName") and junction in (obj.StartJunction, obj.EndJunction):
+    curves = [o for o in (where.Group if hasattr(where, "Group") else where.Objects) if hasattr(o, "CurveName")]
+    if any((o.StartJunction == junction and o.StartOnPlane) or (o.EndJunction == junction and o.EndOnPlane)
+           for o in curves):
+        delta.x = 0.0  # a junction on the symmetry plane moves in it
+    mirrored = FreeCAD.Vector(-delta.x, delta.y, delta.z)
+    twin = junction[: -len(RIGHT)] if junction.endswith(RIGHT) else junction + RIGHT
+    edited = []
+    _Syncing.active = True
+    try:
+        for obj in curves:
             poles = [FreeCAD.Vector(p) for p in obj.Poles]
-            k = 0 if obj.StartJunction == junction else 3
-            poles[k] = poles[k] + delta
-            obj.Poles = poles
-            return obj
-    raise core.CarbodyWorkbenchError(f"no curve ends on junction {junction!r}")
+            for name, d in ((junction, delta), (twin, mirrored)):
+                for end, ends in ((obj.StartJunction, (0, 1)), (obj.EndJunction, (3, 2))):
+                    if end == name:
+                        for k in ends[: 2 if handles else 1]:
+                            poles[k] = poles[k] + d
+            if any((a - b).Length > 0 for a, b in zip(poles, obj.Poles)):
+                obj.Poles = poles
+                edited.append(obj)
+    finally:
+        _Syncing.active = False
+    if not edited:
+        raise core.CarbodyWorkbenchError(f"no curve ends on junction {junction!r}")
+    for obj in edited:  # the curves on the symmetry plane stay in it
+        if obj.Side != "centre":
+            continue
+        _Syncing.active = True
+        try:
+            carry_edit(obj)
+        finally:
+            _Syncing.active = False
+    return edited
 
 
 class CarBody:
@@ -256,7 +284,15 @@ if FreeCAD.GuiUp:
             self.Object = vobj.Object
 
         def updateData(self, obj, prop):
-            if prop in ("Shape", "FaceColours") and len(obj.FaceColours) == len(obj.Shape.Faces):
+            if prop in ("Shape", "FaceColours"):
+                from PySide import QtCore
+
+                # Part's own view provider resets the colours when the shape changes: paint after it
+                QtCore.QTimer.singleShot(0, lambda: self.paint(obj))
+
+        @staticmethod
+        def paint(obj):
+            if len(obj.FaceColours) == len(obj.Shape.Faces):
                 obj.ViewObject.DiffuseColor = list(obj.FaceColours)
 
         def onChanged(self, vobj, prop):
@@ -269,9 +305,15 @@ if FreeCAD.GuiUp:
             return None
 
     class ViewProviderCarRegion(ViewProviderCarBody):
+        @staticmethod
+        def paint(obj):
+            obj.ViewObject.ShapeColor = obj.Colour[:3]
+
         def updateData(self, obj, prop):
-            if prop == "Colour":
-                obj.ViewObject.ShapeColor = obj.Colour[:3]
+            if prop in ("Shape", "Colour"):
+                from PySide import QtCore
+
+                QtCore.QTimer.singleShot(0, lambda: self.paint(obj))
 
 
 def add_car(doc, wire_json):
