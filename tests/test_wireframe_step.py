@@ -89,13 +89,19 @@ def test_gmsh_shows_every_curve_by_name(car, tmp_path):
     assert set(names) == expected and len(names) == len(expected)
 
 
-def test_a_build123d_compound_of_labelled_edges_reads_back_as_written(car, tmp_path):
+def test_a_build123d_compound_of_labelled_edges_reads_back_as_written(car, tmp_path, templates, template_copy):
+    """... and as a template: a car saved by build123d in place of a template's file loads."""
     import build123d as bd
+
+    from carbody.templates import load_template
 
     compound = bd.Compound(children=bezier_edges(car))
     compound.label = car.name
     bd.export_step(compound, str(tmp_path / "b3d.step"))
-    for wire in (read_wireframe(tmp_path / "b3d.step"), as_wireframe(compound)):
+    row = templates[0][0]
+    bd.export_step(compound, str(template_copy / row["file"]))
+    for wire in (read_wireframe(tmp_path / "b3d.step"), as_wireframe(compound),
+                 load_template(row["name"], template_copy)):
         assert wire.name == car.name and np.abs(wire.control_points - car.control_points).max() < 1e-9
 
 

@@ -290,7 +290,11 @@ print("RESULT " + json.dumps(out))
     assert r["joined"] < 1e-9 and r["mirrored"] < 1e-9 and r["raised"] == pytest.approx(50.0)
     assert r["valid"] and r["folds"] == [] and r["status"].startswith("valid")
     assert r["off_curve_mm"] <= 0.01
-    # FreeCAD's STEP export of the curve objects (a product per object) reads back as moved
+    # FreeCAD's STEP export of the curve objects (a product per object) reads back as moved,
+    # and surfaces
+    from tests.conftest import run_cli
+
+    run_cli("surface", str(exported), "-o", str(tmp_path / "body.step"), check=True)
     moved = read_wireframe(exported)
     kp = moved.keypoints()["roof_front_corner"]
     assert kp[2] == pytest.approx(read_wireframe(step).keypoints()["roof_front_corner"][2] + 50.0)
