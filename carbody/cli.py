@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "carbody.templates.cli",
     "carbody.library_cli",
     "carbody.parts_cli",
+    "carbody.wireframe_cli",
 )
 
 

@@ -56,6 +56,12 @@ class RegionLayoutError(SurfaceError):
     (:mod:`carbody.surface.arc_layout`); only a caller of the paper's stages on their own sees it."""
 
 
+class FoldError(SurfaceError):
+    """A region of an edited wireframe folds: its faces turn back over themselves, or its outline
+    crosses itself (:mod:`carbody.surface.folds`). The body can still be had with
+    ``allow_folds=True``; the message names the region and its curves."""
+
+
 class OutputError(CarbodyError):
     """An output file or folder cannot be written (no such folder, no permission, wrong type)."""
 

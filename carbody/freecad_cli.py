@@ -1,8 +1,9 @@
 """``carbody freecad OUT_DIR -o car.FCStd``: a reconstruction as a FreeCAD document.
 
 Runs FreeCAD's own ``freecadcmd`` (FreeCAD has its own OCCT build) with the workbench's headless
-core: the photo as an image plane lined up with the fitted camera, the wireframe as one Part
-object per curve, the body as one Part object per region plus the sewn shell.
+core: the photo as an image plane lined up with the fitted camera, the car as parametric
+objects: one curve object per wireframe curve with editable poles, the sewn body recomputed from
+them (``CarBody``, by this same ``carbody``), and one object per region.
 """
 from __future__ import annotations
 
@@ -28,10 +29,14 @@ from carbody_wb import core
 out, target = {out!r}, {target!r}
 doc = FreeCAD.newDocument("carbody")
 report = json.load(open(os.path.join(out, "report.json")))
-if report.get("image") and os.path.isfile(report["image"]):
-    core.line_up_photo(doc, report["image"], report) or core.add_photo(doc, report["image"])
-wire = core.import_step_parts(doc, os.path.join(out, "wireframe.step"), "Wireframe")
-body = core.import_step_parts(doc, os.path.join(out, "body.step"), "Body")
+image = report.get("image") if report.get("image") and os.path.isfile(report["image"]) else None
+try:
+    wire, body, _ = core.import_reconstruction(doc, image, out)
+except core.CarbodyWorkbenchError as exc:
+    print("CARBODY-ERROR " + str(exc))
+    sys.exit(2)
+if image and core.line_up_photo(doc, image, report) is None:
+    core.add_photo(doc, image)
 doc.saveAs(target)
 print("CARBODY " + json.dumps({{"curves": len(wire.Group), "body_objects": len(body.Group)}}))
 """
@@ -66,6 +71,9 @@ def run_freecad(args: argparse.Namespace) -> int:
         env = {**os.environ, "CARBODY_COMMAND": os.environ.get("CARBODY_COMMAND", f"{sys.executable} -m carbody")}
         proc = subprocess.run([exe, str(script)], capture_output=True, text=True, env=env)
         result = [line for line in proc.stdout.splitlines() if line.startswith("CARBODY ")]
+        failed = [line for line in proc.stdout.splitlines() if line.startswith("CARBODY-ERROR ")]
+        if failed:
+            raise FreeCADError(f"FreeCAD could not build the document: {failed[0][len('CARBODY-ERROR '):]}")
         if not result or not target.is_file():
             lines = [line for line in (proc.stdout + proc.stderr).splitlines() if "carbody" in line.lower() or "Error" in line]
             raise FreeCADError(f"FreeCAD could not build the document: {lines[-1] if lines else 'no result'}")

@@ -38,28 +38,39 @@ def face_region(name: str) -> str:
     return stem[: -len("_right")] if stem.endswith("_right") else stem
 
 
-def list_parts(path: Path) -> dict:
-    """{product, curves: [{name, centre}], faces: [{name, region, centre, area, colour}]} of a STEP
-    file (``colour``: the face's sRGB 0..1 as the file colours it, None when it does not)."""
+def face_entry(name: str, face, colour=None) -> dict:
+    """{name, region, centre (mm), area (mm^2), colour} of one named body face (``colour``: sRGB
+    0..1 as the file colours it, None when it does not)."""
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
+    props = GProp_GProps()
+    BRepGProp.SurfaceProperties_s(face, props)
+    c = props.CentreOfMass()
+    return {"name": name, "region": face_region(name), "centre": [c.X(), c.Y(), c.Z()], "area": props.Mass(),
+            "colour": None if colour is None else [float(v) for v in colour]}
+
+
+def body_faces(body) -> list[dict]:
+    """:func:`face_entry` of every face of a :class:`carbody.surface.Body`, as written to STEP."""
+    from carbody.surface.body import face_names, region_colour
+
+    return [face_entry(n, f, region_colour(p.region)) for n, p, (_, f) in zip(face_names(body), body.patches, body.faces)]
+
+
+def list_parts(path: Path) -> dict:
+    """{product, curves: [{name, centre, poles}], faces: [{name, region, centre, area, colour}]} of a
+    STEP file."""
     from carbody.occ.step_body import read_body_step
     from carbody.occ.step_curves import read_curves_step
 
     body = read_body_step(path)
     if body.faces:
-        faces = []
-        for name, rgb, face in body.faces:
-            props = GProp_GProps()
-            BRepGProp.SurfaceProperties_s(face, props)
-            c = props.CentreOfMass()
-            region = face_region(name)
-            faces.append({"name": name, "region": region, "centre": [c.X(), c.Y(), c.Z()],
-                          "area": props.Mass(), "colour": None if rgb is None else [round(float(v), 4) for v in rgb]})
+        faces = [face_entry(name, face, colour) for name, colour, face in body.faces]
         return {"product": body.product, "curves": [], "faces": faces}
     product, curves = read_curves_step(path)
-    return {"product": product, "curves": [{"name": c.name, "centre": curve_centre(c.poles)} for c in curves],
+    return {"product": product, "curves": [{"name": c.name, "centre": curve_centre(c.poles), "poles": c.poles.tolist()}
+                                           for c in curves],
             "faces": []}
 
 

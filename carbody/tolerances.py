@@ -42,3 +42,7 @@ SHELL_TOL_MM = 0.01
 
 #: Inner patch edges of a region must meet within this normal angle (degrees; CATIA default G1).
 G1_TOL_DEG = 0.5
+
+#: A region folds when faces covering more than this share of its area have turned back over
+#: themselves (carbody.surface.folds; the templates' wheel arches reach 0.7 %).
+FOLD_AREA_SHARE = 0.02

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -143,12 +144,12 @@ print("RESULT " + json.dumps({{
 
 def test_reconstruct_runs_in_a_qprocess_with_its_progress_while_freecad_keeps_running(tmp_path):
     """The GUI's Reconstruct runs carbody in a QProcess: FreeCAD's event loop keeps turning (a
-    timer ticks all along), each stage line comes as the command writes it, and a failure ends
-    in its one line."""
+    timer ticks all along), each stage line comes as the command writes it, a failure ends in
+    its one line, and the whole job hands over the wireframe read back as wireframe JSON."""
     fake = tmp_path / "fake_carbody.py"
     fake.write_text("import sys, time\n"
-                    "if sys.argv[1] == 'parts':\n"
-                    "    print('{\"file\": \"' + sys.argv[2].rsplit('/', 1)[-1] + '\"}'); sys.exit(0)\n"
+                    "if sys.argv[1] == 'wireframe':\n"
+                    "    open(sys.argv[4], 'w').write('{\"file\": \"' + sys.argv[2].rsplit('/', 1)[-1] + '\"}'); sys.exit(0)\n"
                     "if sys.argv[1] == 'fail':\n"
                     "    print('carbody reconstruct: error: the keypoints are coincident', file=sys.stderr); sys.exit(2)\n"
                     "for stage in ('view', 'fit', 'surfaces', 'write'):\n"
@@ -175,7 +176,7 @@ def run(args):
     return out
 good = run(["reconstruct"])
 bad = run(["fail"])
-# the whole job: reconstruct, then the two STEP files' parts listings, one after the other
+# the whole job: reconstruct, then its wireframe read back as wireframe JSON, one after the other
 loop = QtCore.QEventLoop()
 said, finished = [], {{}}
 def job_done(ok, result):
@@ -193,39 +194,8 @@ print("RESULT " + json.dumps({{"good": good, "bad": bad, "events": events, "tick
     # the lines came as they were written, and the timer ticked in between: nothing blocked
     assert stages[-1][0] - stages[0][0] > 0.6 and stages[-1][2] - stages[0][2] >= 8
     assert not bad["ok"] and bad["message"] == "carbody reconstruct: error: the keypoints are coincident"
-    assert result["job"] == {"ok": True, "result": {"wireframe": {"file": "wireframe.step"}, "body": {"file": "body.step"}}}
-    assert result["said"] == ["stage view", "stage fit", "stage surfaces", "stage write",
-                              "reading the wireframe back", "reading the body back"]
-
-
-def test_the_carbody_command_is_found_on_path_or_in_the_workbenchs_venv(tmp_path):
-    """With no $CARBODY_COMMAND and nothing set: ``carbody`` on PATH, else the venv beside (or
-    above) the workbench's real folder, a link into FreeCAD's Mod/ followed."""
-    repo = tmp_path / "repo"
-    (repo / ".venv" / "bin").mkdir(parents=True)
-    script = repo / ".venv" / "bin" / "carbody"
-    script.write_text("#!/bin/sh\n")
-    script.chmod(0o755)
-    (repo / "workbench").mkdir()
-    (tmp_path / "Mod").mkdir()
-    (tmp_path / "Mod" / "carbody").symlink_to(repo / "workbench")
-    on_path = tmp_path / "bin"
-    on_path.mkdir()
-    (on_path / "carbody").write_text("#!/bin/sh\n")
-    (on_path / "carbody").chmod(0o755)
-    result = run_freecad(f"""
-import json, FreeCAD
-from carbody_wb import core
-linked = {str(tmp_path / "Mod" / "carbody")!r}
-print("RESULT " + json.dumps({{
-    "venv": core.carbody_command(linked, path="/nonexistent"),
-    "path": core.carbody_command(linked, path={str(on_path)!r}),
-    "none": core.carbody_command({str(tmp_path / "Mod")!r}, path="/nonexistent"),
-}}))
-""", tmp_path, env={"CARBODY_COMMAND": ""})
-    assert result["venv"] == [str(script)]
-    assert result["path"] == [str(on_path / "carbody")]
-    assert result["none"] == ["carbody"]
+    assert result["job"] == {"ok": True, "result": {"file": "wireframe.step"}}
+    assert result["said"] == ["stage view", "stage fit", "stage surfaces", "stage write", "reading the wireframe back"]
 
 
 def test_the_macro_reconstructs_headless_and_the_document_matches_the_step_files(tmp_path):
@@ -309,3 +279,150 @@ def test_carbody_freecad_builds_a_document_or_says_freecad_is_missing(tmp_path):
     lines = missing.stderr.strip().splitlines()
     assert missing.returncode == 2 and len(lines) == 1 and "FreeCAD is not installed" in lines[0]
     assert not (tmp_path / "none.FCStd").exists()
+
+
+def test_the_car_comes_in_parametric_and_the_body_follows_a_moved_junction(tmp_path, topology):
+    """One freecadcmd run: a template as parametric objects (125 curves with editable poles, the
+    CarBody shell and 13 coloured regions); the roof-front junction moved up 50 mm as a user
+    moving one pole, its curves and mirror twin follow and the recomputed shell is valid and
+    passes through the moved curves within 0.01 mm; FreeCAD's own STEP export of the curves reads
+    back in carbody; a document saved and reopened still carries edits; the junction dragged far
+    is one line in the report view naming the folded region and its curves."""
+    from carbody.templates import templates_dir
+    from carbody.wireframe import read_wireframe
+
+    step = templates_dir() / "volvo_v60.step"
+    exported, saved = tmp_path / "freecad_export.step", tmp_path / "car.FCStd"
+    touched = [c.name for c in topology.curves if "roof_front_corner" in (c.start, c.end)]
+    script = f"""
+import json, FreeCAD, Part, Import
+from carbody_wb import core, model
+doc = FreeCAD.newDocument("t")
+wire, body = core.import_car(doc, {str(step)!r})
+shell = doc.getObject("CarBody")
+curves = {{o.CurveName: o for o in wire.Group}}
+out = {{"curves": len(curves), "labels_are_names": all(o.Label == n for n, o in curves.items()),
+        "regions": sorted(o.Label for o in body.Group if o is not shell),
+        "region_colours": len({{tuple(o.Colour) for o in body.Group if o is not shell}}),
+        "faces": len(shell.Shape.Faces), "colours": len(shell.FaceColours), "status0": shell.Status,
+        "valid0": shell.Shape.isValid()}}
+before = curves["roof_side_1"].Poles[0]
+# the user moves one pole: the end of a_pillar_2 on the roof's front corner
+poles = list(curves["a_pillar_2"].Poles)
+poles[3] = poles[3] + FreeCAD.Vector(0, 0, 50)
+curves["a_pillar_2"].Poles = poles
+ends = [curves["windshield_top"].Poles[3], curves["a_pillar_2"].Poles[3], curves["roof_side_1"].Poles[0]]
+twins = [curves["windshield_top_right"].Poles[3], curves["a_pillar_2_right"].Poles[3], curves["roof_side_1_right"].Poles[0]]
+out["joined"] = max((p - ends[0]).Length for p in ends)
+out["mirrored"] = max((FreeCAD.Vector(-p.x, p.y, p.z) - ends[0]).Length for p in twins)
+out["raised"] = ends[0].z - before.z
+doc.recompute()
+out["valid"] = shell.Shape.isValid() and len(shell.Shape.Shells) == 1
+out["status"], out["folds"] = shell.Status, list(shell.Folds)
+names = {touched!r}
+far = 0.0
+for n in names + [n + "_right" for n in names]:
+    e = curves[n].Shape.Edges[0]
+    for k in range(11):
+        p = e.valueAt(e.FirstParameter + k / 10.0 * (e.LastParameter - e.FirstParameter))
+        far = max(far, shell.Shape.distToShape(Part.Vertex(p))[0])
+out["off_curve_mm"] = far
+Import.export(wire.Group, {str(exported)!r})
+doc.saveAs({str(saved)!r})
+FreeCAD.closeDocument(doc.Name)
+doc = FreeCAD.openDocument({str(saved)!r})
+curves = {{o.CurveName: o for o in doc.Objects if hasattr(o, "CurveName")}}
+model.move_junction(doc, "roof_front_corner", (0, 800, 0))  # back over the roof
+out["reopened_follows"] = (curves["roof_side_1_right"].Poles[0].y - curves["a_pillar_2"].Poles[3].y)
+doc.recompute()
+shell = doc.getObject("CarBody")
+out["far_folds"], out["far_status"] = list(shell.Folds), shell.Status
+print("RESULT " + json.dumps(out))
+"""
+    path = tmp_path / "fc_script.py"
+    path.write_text(f"import sys\nsys.path.insert(0, {str(WORKBENCH)!r})\n" + script)
+    proc = subprocess.run(["freecadcmd", str(path)], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "CARBODY_COMMAND": f"{sys.executable} -m carbody"})
+    lines = [line for line in proc.stdout.splitlines() if line.startswith("RESULT ")]
+    assert lines, proc.stdout[-3000:] + proc.stderr[-2000:]
+    r = json.loads(lines[0][len("RESULT "):])
+    assert r["curves"] == 125 and r["labels_are_names"]
+    assert r["regions"] == sorted(reg.name for reg in topology.regions) and r["region_colours"] == 13
+    assert r["valid0"] and r["colours"] == r["faces"] and r["status0"].startswith("valid")
+    assert r["joined"] < 1e-9 and r["mirrored"] < 1e-9 and r["raised"] == pytest.approx(50.0)
+    assert r["valid"] and r["folds"] == [] and r["status"].startswith("valid")
+    assert r["off_curve_mm"] <= 0.01
+    # FreeCAD's STEP export of the curve objects (a product per object) reads back as moved,
+    # and surfaces
+    from tests.conftest import run_cli
+
+    run_cli("surface", str(exported), "-o", str(tmp_path / "body.step"), check=True)
+    moved = read_wireframe(exported)
+    kp = moved.keypoints()["roof_front_corner"]
+    assert kp[2] == pytest.approx(read_wireframe(step).keypoints()["roof_front_corner"][2] + 50.0)
+    assert abs(r["reopened_follows"]) < 1e-9
+    assert r["far_folds"] and r["far_status"] == r["far_folds"][0]
+    assert r["far_status"].startswith("region ") and " folds: " in r["far_status"] and "_" in r["far_status"]
+    # the report view: one line per folded region
+    report_view = [line for line in (proc.stdout + proc.stderr).replace("\t", "\n").splitlines()
+                   if line.startswith("carbody: region ")]
+    assert report_view and report_view[0] == "carbody: " + r["far_folds"][0]
+
+
+def test_freecad_shows_the_curve_names_carbody_writes(tmp_path, templates):
+    """FreeCAD's STEP import (as its GUI does, a part per product) names every curve object."""
+    from carbody.wireframe import write_wireframe
+
+    _, wf = templates[0]
+    path = write_wireframe(tmp_path / "car.step", wf, both_halves=True)
+    result = run_freecad(f"""
+import json, FreeCAD, Import
+FreeCAD.ParamGet("User parameter:BaseApp/Preferences/Mod/Import").SetBool("UseLinkGroup", False)
+doc = FreeCAD.newDocument("t")
+Import.insert({str(path)!r}, "t")
+print("RESULT " + json.dumps(sorted(o.Label for o in doc.Objects if o.TypeId == "Part::Feature")))
+""", tmp_path)
+    assert result == sorted(n for n, _ in wf.named_curves(both_halves=True))
+
+
+def test_the_carbody_command_is_found_in_its_order_env_preference_venv_path(tmp_path):
+    """$CARBODY_COMMAND, else the preference, else the carbody of a .venv in the checkout the
+    workbench folder was linked from (the link in FreeCAD's Mod/ followed; before PATH), else
+    carbody on PATH, else the bare name (running it then says it is not found)."""
+    checkout = tmp_path / "checkout"
+    (checkout / ".venv" / "bin").mkdir(parents=True)
+    fake = checkout / ".venv" / "bin" / "carbody"
+    fake.write_text("#!/bin/sh\necho fake\n")
+    fake.chmod(0o755)
+    shutil.copytree(WORKBENCH, checkout / "workbench", ignore=shutil.ignore_patterns("__pycache__"))
+    mod = tmp_path / "Mod"
+    mod.mkdir()
+    (mod / "carbody").symlink_to(checkout / "workbench")  # FreeCAD's Mod/ -> the checkout
+    on_path = tmp_path / "bin"
+    on_path.mkdir()
+    (on_path / "carbody").write_text("#!/bin/sh\n")
+    (on_path / "carbody").chmod(0o755)
+    result = run_freecad(f"""
+import json, os, sys, FreeCAD
+sys.path.insert(0, {str(mod / "carbody")!r})
+from carbody_wb import core
+os.environ.pop("CARBODY_COMMAND", None)
+core.set_carbody_command("")
+out = {{"venv": core.carbody_command(path={str(on_path)!r}),
+        "path": core.carbody_command({str(mod)!r}, path={str(on_path)!r}),
+        "none": core.carbody_command({str(mod)!r}, path="/nonexistent"),
+        "no_venv_above_root": core.venv_carbody("/")}}
+try:
+    core.set_carbody_command("/opt/set/carbody")
+    out["preference"] = core.carbody_command(path={str(on_path)!r})
+    os.environ["CARBODY_COMMAND"] = "/opt/other/carbody --flag"
+    out["env"] = core.carbody_command(path={str(on_path)!r})
+finally:
+    core.set_carbody_command("")
+print("RESULT " + json.dumps(out))
+""", tmp_path, env={"CARBODY_COMMAND": ""})
+    assert result["env"] == ["/opt/other/carbody", "--flag"]
+    assert result["preference"] == ["/opt/set/carbody"]
+    assert result["venv"] == [str(fake)]
+    assert result["path"] == [str(on_path / "carbody")]
+    assert result["none"] == ["carbody"] and result["no_venv_above_root"] is None

@@ -169,7 +169,9 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
         pairs, ribs}}, ``seams`` {"a|b": {g0_mm, g1_deg}},
         ``shell`` {valid, faces, free_edges, free_loops, max_tolerance_mm, ...} and ``timings_s``.
         Each region also says its ``layout``: "skeleton" (the paper's) or "arc_length" (where
-        the paper's fails on this wireframe; ``layout_note`` says why).
+        the paper's fails on this wireframe; ``layout_note`` says why), its
+        ``folded_area_share`` and, when it folds (:mod:`carbody.surface.folds`), ``fold``: one
+        line naming it and its curves; ``folds`` lists those lines (empty for a sound body).
     Raises:
         SurfaceError: a region whose loop does not close or is degenerate (a curve of zero
             length, junctions on one spot, no area; the message names the region and curves),
@@ -198,8 +200,17 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
     timings["sewing_s"] = time.perf_counter() - t
 
     report: dict[str, Any] = {"regions": {}, "seams": {}}
+    from carbody.surface.folds import fold_message, region_folds
+
+    t = time.perf_counter()
+    folds = {f.region: f for f in region_folds(cp, region_outlines(cp, topo), {n.name: n.faces for n in nets}, topo)}
+    timings["folds_s"] = time.perf_counter() - t
+    report["folds"] = [fold_message(f) for f in folds.values() if f.folds]
     for n, s in zip(nets, sk):
         r = region_report(n.faces, n.side_turn_deg)
+        r["folded_area_share"] = folds[n.name].folded_area_share
+        if folds[n.name].folds:
+            r["fold"] = fold_message(folds[n.name])
         r["pairs"] = len(s.pairs) if s is not None else 0
         r["ribs"] = len(n.ribs)
         r["layout"] = n.layout
@@ -218,6 +229,32 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
     report["timings_s"] = timings
     faces = [(f.region, g) for f, g in zip(patches_all, sewn)]
     return Body(wireframe.name, shell, faces, report, patches_all, nets)
+
+
+def surface_wireframe(wire, *, allow_folds: bool = False, topology: Topology | None = None) -> Body:
+    """Surface an edited wireframe: :func:`build_body` on anything :func:`carbody.wireframe.as_wireframe`
+    takes (a :class:`~carbody.wireframe.Wireframe`, a wireframe file, a build123d compound of
+    labelled edges, a CadQuery assembly of named edges), refusing a body that folds.
+
+    Args:
+        wire: the wireframe (mm).
+        allow_folds: give the body even when a region folds (its ``report["folds"]`` says where).
+    Returns:
+        the :class:`Body`.
+    Raises:
+        FoldError: a region folds (:mod:`carbody.surface.folds`): one line naming the region and
+            its curves (the first of them, with how many more).
+        SurfaceError: as :func:`build_body`; TemplateError: curves missing, unnamed or apart.
+    """
+    from carbody.errors import FoldError
+    from carbody.wireframe import as_wireframe
+
+    body = build_body(as_wireframe(wire), topology)
+    folds = body.report["folds"]
+    if folds and not allow_folds:
+        more = len(folds) - 1
+        raise FoldError(folds[0] + (f"; {more} more region{'s fold' if more > 1 else ' folds'} too" if more else ""))
+    return body
 
 
 def opening_length(control_points: np.ndarray, topology: Topology | None = None, samples: int = 400) -> float:

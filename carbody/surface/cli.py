@@ -12,9 +12,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                        description="Wireframe STEP -> 13 regions -> skeletons -> control nets -> Bezier "
                                    "faces of both halves sewn into one shell, written as AP214 STEP (mm) "
                                    "with faces named and coloured by region.")
-    p.add_argument("wireframe", type=Path, help="wireframe STEP (a template or a fitted car)")
+    p.add_argument("wireframe", type=Path, help="wireframe STEP (a template, a fitted car, or one saved by "
+                   "FreeCAD, CadQuery or build123d with the curves named) or wireframe JSON")
     p.add_argument("-o", "--output", type=Path, required=True, help="body STEP to write")
-    p.add_argument("--report", type=Path, metavar="JSON", help="write the quality report here")
+    p.add_argument("--report", type=Path, metavar="JSON", help="write the quality report here (with every "
+                   "face's name, region, colour and centre)")
+    p.add_argument("--refuse-folds", action="store_true", help="write nothing and exit 2 when a region folds "
+                   "(default: write the body and say which regions fold)")
     p.add_argument("--png", type=Path, metavar="FILE", help="render the shaded body from three views")
     p.set_defaults(func=_surface)
 
@@ -44,12 +48,12 @@ def read_surface_wireframe(path: Path):
             raise
         import numpy as np
 
-        from carbody.occ.step_curves import read_curves_step
         from carbody.surface.regions import region_outline
         from carbody.topology import load_topology
+        from carbody.wireframe import read_named_curves
 
         topo = load_topology()
-        _, curves = read_curves_step(path)
+        _, curves = read_named_curves(path)
         by_name = {c.name: c.poles for c in curves if len(c.poles) == 4}
         if not all(c.name in by_name for c in topo.curves):
             raise
@@ -75,6 +79,12 @@ def _surface(args) -> int:
     wf = read_surface_wireframe(args.wireframe)
     t1 = time.perf_counter()
     body = build_body(wf)
+    folds = body.report["folds"]
+    if folds and args.refuse_folds:
+        from carbody.errors import FoldError
+
+        more = len(folds) - 1
+        raise FoldError(folds[0] + (f"; {more} more region{'s fold' if more > 1 else ' folds'} too" if more else ""))
     t2 = time.perf_counter()
     write_body(args.output, body)
     t3 = time.perf_counter()
@@ -82,7 +92,9 @@ def _surface(args) -> int:
     if args.report:
         from carbody.occ.step_curves import atomic_write
 
-        text = json.dumps(body.report, indent=1, default=float)
+        from carbody.parts_cli import body_faces
+
+        text = json.dumps({**body.report, "faces": body_faces(body)}, indent=1, default=float)
         atomic_write(args.report, lambda tmp: Path(tmp).write_text(text))
     if args.png:
         from carbody.surface.render import render_body
@@ -91,6 +103,8 @@ def _surface(args) -> int:
     shell = body.report.get("shell", {})
     print(f"wrote {args.output}: {shell.get('faces', len(body.faces))} faces, one shell, "
           f"valid={shell.get('valid')}, free loops={shell.get('free_closed_loops')}", file=sys.stderr)
+    for line in folds:
+        print(f"carbody surface: warning: {line}", file=sys.stderr)
     by_arc = [n for n, r in body.report["regions"].items() if r["layout"] != "skeleton"]
     if by_arc:
         print(f"laid out by arc length (their outlines fold in their best-fit planes, or their ribs "

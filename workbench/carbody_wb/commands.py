@@ -1,4 +1,7 @@
-"""The workbench's toolbar commands: load photo, load keypoints, reconstruct, preferences."""
+"""The workbench's toolbar commands: load photo, load keypoints, reconstruct, move junction,
+preferences. Reconstruct runs ``carbody reconstruct`` in the background
+(:class:`carbody_wb.core.ReconstructJob`): FreeCAD stays responsive, each stage shows in the
+status bar and the report view."""
 import os
 
 import FreeCAD
@@ -64,7 +67,8 @@ class LoadKeypoints(_Command):
 class Reconstruct(_Command):
     icon = "reconstruct.svg"
     menu = "Reconstruct car body"
-    tooltip = "Run carbody on the photo and keypoints; bring the wireframe and body in as Part objects"
+    tooltip = ("Run carbody on the photo and keypoints (in the background); bring the car in as "
+               "curves with editable poles and a body recomputed from them")
 
     job = None  # the run in progress (one at a time)
 
@@ -88,8 +92,9 @@ class Reconstruct(_Command):
             if not ok:
                 _status(f"carbody: {result}", error=True)
                 return
+            _status("carbody: bringing the car in (the body is surfaced from its curves) ...")
             try:
-                _, _, report = core.import_reconstruction(doc, image, out, listings=result)
+                _, _, report = core.import_reconstruction(doc, image, out, wire_json=result)
             except core.CarbodyWorkbenchError as exc:
                 _status(f"carbody: {exc}", error=True)
                 return
@@ -97,8 +102,7 @@ class Reconstruct(_Command):
             _status(f"carbody: done, the car is in {doc.Label}")
             _look_as_the_photo(report["fit"].get("photo_plane"))
 
-        _status("carbody: reconstructing (FreeCAD stays usable meanwhile) ...")
-        # a run in a QProcess: the GUI keeps its event loop; progress in the status bar and report view
+        _status(f"carbody: reconstructing {image} into {out} (FreeCAD stays usable meanwhile) ...")
         Reconstruct.job = core.ReconstructJob(image, keypoints, out, on_progress=lambda t: _status(f"carbody: {t}"),
                                               on_done=done).start()
 
@@ -109,6 +113,31 @@ def _status(text, error=False):
     window = FreeCADGui.getMainWindow()
     if window is not None:
         window.statusBar().showMessage(text, 0 if error else 15000)
+
+
+class MoveJunction(_Command):
+    icon = "carbody.svg"
+    menu = "Move junction..."
+    tooltip = ("Move the junction at the selected curve end by dx, dy, dz (mm): the curves meeting "
+               "there and the mirror half follow; recompute to update the body")
+
+    def run(self):
+        from PySide import QtGui
+
+        picked = [(s.Object, n) for s in FreeCADGui.Selection.getSelectionEx() for n in s.SubElementNames
+                  if hasattr(s.Object, "CurveName") and n.startswith("Vertex")]
+        if not picked:
+            raise core.CarbodyWorkbenchError("select the end (a vertex) of a carbody curve first")
+        obj, vertex = picked[0]
+        junction = obj.StartJunction if vertex == "Vertex1" else obj.EndJunction
+        text, ok = QtGui.QInputDialog.getText(None, "carbody", f"move {junction} by dx, dy, dz (mm):", text="0, 0, 50")
+        if ok and text:
+            from carbody_wb import model
+
+            delta = [float(v) for v in text.replace(";", ",").split(",")]
+            groups = [o for o in obj.InList if o.isDerivedFrom("App::DocumentObjectGroup")]
+            model.move_junction(groups[0] if groups else obj.Document, junction, delta)
+            obj.Document.recompute()
 
 
 def _look_as_the_photo(placement):
@@ -137,8 +166,8 @@ class Preferences(_Command):
 
         stored = FreeCAD.ParamGet(core.PARAM_PATH).GetString("CarbodyCommand", "")
         found = " ".join(core.carbody_command())
-        text, ok = QtGui.QInputDialog.getText(None, "carbody", "carbody command (empty: the one on PATH or in "
-                                              f"the workbench's venv, now {found}):", text=stored)
+        text, ok = QtGui.QInputDialog.getText(None, "carbody", "carbody command (empty: the one in the "
+                                              f"workbench's venv or on PATH, now {found}):", text=stored)
         if ok:
             core.set_carbody_command(text.strip())
 
@@ -146,7 +175,8 @@ class Preferences(_Command):
 def register():
     """Add the commands to FreeCAD; returns their names in toolbar order."""
     commands = {"Carbody_LoadPhoto": LoadPhoto(), "Carbody_LoadKeypoints": LoadKeypoints(),
-                "Carbody_Reconstruct": Reconstruct(), "Carbody_Preferences": Preferences()}
+                "Carbody_Reconstruct": Reconstruct(), "Carbody_MoveJunction": MoveJunction(),
+                "Carbody_Preferences": Preferences()}
     for name, command in commands.items():
         FreeCADGui.addCommand(name, command)
     return list(commands)

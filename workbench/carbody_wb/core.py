@@ -1,13 +1,13 @@
-"""carbody inside FreeCAD, without the GUI: run the ``carbody`` command, bring its STEP results in.
+"""carbody inside FreeCAD, without the GUI: run the ``carbody`` command, bring its results in.
 
-FreeCAD has its own OCCT build, so carbody runs as a separate process: ``$CARBODY_COMMAND``,
-else the command set with **carbody command…** (parameter ``CarbodyCommand``), else ``carbody``
-on PATH, else the ``carbody`` of the virtual environment the workbench was installed from (a
-``.venv`` in or beside its real folder: the repository's, when ``workbench/`` is linked into
-FreeCAD's ``Mod/``). Curve and region names come from ``carbody parts FILE --json``, matched to
-the shapes FreeCAD reads by position, so the import does not depend on the order a STEP reader
-lists things in; the region colours too. :class:`CarbodyProcess` runs the command in a
-``QProcess``, so FreeCAD stays responsive while the reconstruction runs.
+FreeCAD has its own OCCT build, so carbody runs as a separate process, found as
+:func:`carbody_command` says. A reconstruction comes in as parametric objects
+(:mod:`carbody_wb.model`: curves with editable poles, a body recomputed from them); plain STEP
+files as named Part objects (:func:`import_step_parts`, body regions in their colours), their
+curve and region names from ``carbody parts FILE --json``, matched to the shapes FreeCAD reads by
+position, so the import does not depend on the order a STEP reader lists things in.
+:class:`CarbodyProcess` runs the command in a ``QProcess`` and :class:`ReconstructJob` a whole
+reconstruction, so FreeCAD stays responsive while it runs.
 """
 import json
 import math
@@ -15,6 +15,7 @@ import os
 import shlex
 import shutil
 import subprocess
+import tempfile
 
 import FreeCAD
 import Part
@@ -26,20 +27,40 @@ class CarbodyWorkbenchError(Exception):
     """A one-line reason the workbench could not do what was asked."""
 
 
-#: Where a virtual environment keeps its console scripts (POSIX, Windows).
-VENV_SCRIPTS = (os.path.join("bin", "carbody"), os.path.join("Scripts", "carbody.exe"))
+#: The workbench's own folder, symlinks resolved (a link in FreeCAD's Mod/ to a checkout).
+WORKBENCH_DIR = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 
 #: Names a project's virtual environment goes by.
 VENV_NAMES = (".venv", "venv")
 
+#: Where a virtual environment keeps its console scripts (POSIX, Windows).
+VENV_SCRIPTS = (os.path.join("bin", "carbody"), os.path.join("Scripts", "carbody.exe"))
 
-def installed_carbody(workbench_dir=None):
-    """The ``carbody`` of the virtual environment the workbench came with: a ``.venv`` (or
-    ``venv``) in the workbench's real folder or the one above it (the repository's, ``workbench/``
-    beside ``.venv/``; a link into FreeCAD's ``Mod/`` is followed to where it points); None when
-    there is none."""
-    here = os.path.realpath(workbench_dir or os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    for _ in range(2):
+
+def carbody_command(workbench_dir=None, path=None):
+    """The carbody command as an argument list, the first of: ``$CARBODY_COMMAND``; the
+    preference (``CarbodyCommand``, set with the **carbody command…** button); the ``carbody`` of
+    a virtual environment beside the workbench (:func:`venv_carbody`: the checkout it was linked
+    or copied from); ``carbody`` on ``path`` (default ``$PATH``); else ``["carbody"]`` (running
+    it then says in one line that it is not found).
+
+    Args:
+        workbench_dir: where the venv is looked for (default: the workbench's real folder).
+        path: the search path for ``carbody`` (default ``$PATH``).
+    """
+    text = os.environ.get("CARBODY_COMMAND") or FreeCAD.ParamGet(PARAM_PATH).GetString("CarbodyCommand", "")
+    if text.strip():
+        return shlex.split(text)
+    found = venv_carbody(workbench_dir) or shutil.which("carbody", path=path)
+    return [found or "carbody"]
+
+
+def venv_carbody(start=None):
+    """The ``carbody`` program of a virtual environment beside the workbench: ``.venv/bin`` or
+    ``venv/bin`` (``Scripts`` on Windows) in ``start`` (default :data:`WORKBENCH_DIR`; a link is
+    followed to where it points) or any folder above it; None if none."""
+    here = os.path.realpath(start or WORKBENCH_DIR)
+    while True:
         for venv in VENV_NAMES:
             for script in VENV_SCRIPTS:
                 candidate = os.path.join(here, venv, script)
@@ -47,23 +68,17 @@ def installed_carbody(workbench_dir=None):
                     return candidate
         parent = os.path.dirname(here)
         if parent == here:
-            break
+            return None
         here = parent
-    return None
 
 
-def carbody_command(workbench_dir=None, path=None):
-    """The carbody command as an argument list (module docstring for the order it is looked for
-    in); ``["carbody"]`` when none is found (running it then says so in one line)."""
-    text = os.environ.get("CARBODY_COMMAND") or FreeCAD.ParamGet(PARAM_PATH).GetString("CarbodyCommand", "")
-    if text.strip():
-        return shlex.split(text)
-    found = shutil.which("carbody", path=path) or installed_carbody(workbench_dir)
-    return [found] if found else ["carbody"]
+def set_carbody_command(text):
+    """Store the preference :func:`carbody_command` reads (empty: look for it again)."""
+    FreeCAD.ParamGet(PARAM_PATH).SetString("CarbodyCommand", text)
 
 
-def resolved_command(command=None):
-    """``command`` (default :func:`carbody_command`) with its program found, as an argument list.
+def resolve_command(command=None):
+    """``command`` (default :func:`carbody_command`) with its program's full path, as an argument list.
 
     Raises:
         CarbodyWorkbenchError: the program is not there.
@@ -77,16 +92,20 @@ def resolved_command(command=None):
     return [exe, *cmd[1:]]
 
 
+#: How ``carbody reconstruct --progress`` starts the line it writes as each stage starts.
+STAGE_PREFIX = "carbody: stage "
+
+
 def last_error_line(stderr, code):
-    """The one line a failed carbody run says why (its last non-empty stderr line)."""
-    lines = [line for line in (stderr or "").strip().splitlines() if line.strip() and not line.startswith("carbody: stage ")]
+    """The one line a failed carbody run says why (its last non-empty stderr line that is not a
+    stage line)."""
+    lines = [line for line in (stderr or "").strip().splitlines() if line.strip() and not line.startswith(STAGE_PREFIX)]
     return lines[-1] if lines else f"carbody exited with code {code}"
 
 
 def run_carbody(args, command=None):
     """Run ``carbody ARGS`` and wait; its one-line error becomes a :class:`CarbodyWorkbenchError`."""
-    cmd = resolved_command(command)
-    proc = subprocess.run([*cmd, *map(str, args)], capture_output=True, text=True)
+    proc = subprocess.run([*resolve_command(command), *map(str, args)], capture_output=True, text=True)
     if proc.returncode != 0:
         raise CarbodyWorkbenchError(last_error_line(proc.stderr, proc.returncode))
     return proc
@@ -145,6 +164,11 @@ def photo_camera(placement):
             "height_angle": 2.0 * math.atan(1.1 * (height / 2 + offset) / abs((centre - eye).dot(back)))}
 
 
+def match_faces(faces, entries):
+    """For each FreeCAD face, the index of its entry in a carbody face listing (``centre``s)."""
+    return _nearest([FreeCAD.Vector(*e["centre"]) for e in entries], [f.CenterOfMass for f in faces])
+
+
 def _nearest(centres, targets):
     """Greedy nearest assignment: for each target centre, the index of the closest free centre."""
     free = set(range(len(centres)))
@@ -156,17 +180,15 @@ def _nearest(centres, targets):
     return out
 
 
-def import_step_parts(doc, step_path, group_name, command=None, listing=None):
+def import_step_parts(doc, step_path, group_name, command=None):
     """Read a carbody STEP file into ``doc``: one Part object per curve, or per body region in
-    the region's colour (``RegionColour``, and the shape's colour in the GUI).
+    the region's colour (``RegionColour``, and the shape's colour in the GUI), plus the sewn
+    shell (``<group_name>Shell``).
 
-    Args:
-        listing: ``carbody parts STEP --json`` already run (default: run it now).
     Returns:
         the group holding the new objects.
     """
-    if listing is None:
-        listing = json.loads(run_carbody(["parts", step_path, "--json"], command).stdout)
+    listing = json.loads(run_carbody(["parts", step_path, "--json"], command).stdout)
     shape = Part.Shape()
     shape.read(os.path.abspath(step_path))
     group = doc.addObject("App::DocumentObjectGroup", group_name)
@@ -223,33 +245,61 @@ def reconstruct_args(image, keypoints, out_dir, view=None, wheelbase_mm=None):
     return args
 
 
-def import_reconstruction(doc, image, out_dir, command=None, listings=None):
-    """Bring a reconstruction folder's wireframe and body into ``doc`` and stand the photo where
-    the fit says.
-
-    Args:
-        listings: {"wireframe": ..., "body": ...} ``carbody parts --json`` already run.
-    Returns:
-        (wireframe group, body group, report dict).
-    """
-    listings = listings or {}
-    wire = import_step_parts(doc, os.path.join(out_dir, "wireframe.step"), "Wireframe", command, listings.get("wireframe"))
-    body = import_step_parts(doc, os.path.join(out_dir, "body.step"), "Body", command, listings.get("body"))
-    with open(os.path.join(out_dir, "report.json")) as f:
-        report = json.load(f)
-    line_up_photo(doc, image, report)
-    return wire, body, report
-
-
 def reconstruct(doc, image, keypoints, out_dir, view=None, wheelbase_mm=None, command=None):
-    """Run ``carbody reconstruct`` and wait (the macro, headless), then bring the wireframe and
-    body into ``doc``; the GUI command runs :class:`ReconstructJob` instead.
+    """Run ``carbody reconstruct`` and wait (the macro, headless), then bring the car into
+    ``doc`` (:func:`import_reconstruction`); the GUI command runs :class:`ReconstructJob` instead.
 
     Returns:
         (wireframe group, body group, report dict).
     """
     run_carbody(reconstruct_args(image, keypoints, out_dir, view, wheelbase_mm), command)
     return import_reconstruction(doc, image, out_dir, command)
+
+
+def import_reconstruction(doc, image, out_dir, command=None, wire_json=None):
+    """A ``carbody reconstruct`` folder into ``doc``: the car as parametric objects
+    (:func:`import_car`) and the photo lined up with the fitted camera.
+
+    Args:
+        image: the photo (None: no photo plane).
+        wire_json: the folder's wireframe as wireframe JSON data, already read
+            (:class:`ReconstructJob` reads it; default: read it now).
+    Returns:
+        (wireframe group, body group, report dict).
+    """
+    if wire_json is None:
+        wire, body = import_car(doc, os.path.join(out_dir, "wireframe.step"), command)
+    else:
+        from carbody_wb import model
+
+        wire, body = model.add_car(doc, wire_json)
+    with open(os.path.join(out_dir, "report.json")) as f:
+        report = json.load(f)
+    if image:
+        line_up_photo(doc, image, report)
+    return wire, body, report
+
+
+def wireframe_args(wireframe_path, json_path):
+    """The arguments of ``carbody wireframe``: a wireframe file to wireframe JSON (both halves)."""
+    return ["wireframe", os.path.abspath(wireframe_path), "-o", json_path]
+
+
+def import_car(doc, wireframe_path, command=None):
+    """A wireframe file (carbody's STEP or JSON, or a STEP saved by FreeCAD, CadQuery or build123d
+    with the curves named) into ``doc`` as parametric objects (:func:`carbody_wb.model.add_car`).
+
+    Returns:
+        (wireframe group, body group).
+    """
+    from carbody_wb import model
+
+    with tempfile.TemporaryDirectory(prefix="carbody-fc-") as tmp:
+        path = os.path.join(tmp, "wire.json")
+        run_carbody(wireframe_args(wireframe_path, path), command)
+        with open(path) as f:
+            wire_json = json.load(f)
+    return model.add_car(doc, wire_json)
 
 
 class CarbodyProcess:
@@ -265,7 +315,7 @@ class CarbodyProcess:
     def __init__(self, args, on_line=None, on_done=None, command=None):
         from PySide import QtCore
 
-        self._cmd = resolved_command(command)
+        self._cmd = resolve_command(command)
         self._args = [str(a) for a in args]
         self._on_line, self._on_done = on_line, on_done
         self._stdout, self._stderr, self._partial = [], [], ""
@@ -319,23 +369,23 @@ class CarbodyProcess:
 
 
 class ReconstructJob:
-    """``carbody reconstruct`` and the parts listings of its two STEP files, one after the other
-    in :class:`CarbodyProcess` es, FreeCAD responsive throughout; then ``on_done(ok, result)``
-    with ``result`` the folder's listings ({"wireframe", "body"}) or the one-line error.
+    """``carbody reconstruct`` and then its wireframe read back (``carbody wireframe``, to
+    wireframe JSON), one after the other in :class:`CarbodyProcess` es, FreeCAD responsive
+    throughout; then ``on_done(ok, result)`` with ``result`` the wireframe JSON data (for
+    :func:`import_reconstruction`) or the one-line error.
 
     Args:
         on_progress: called with a line a person can read as each stage starts.
     """
 
-    STAGE_PREFIX = "carbody: stage "
-
     def __init__(self, image, keypoints, out_dir, view=None, wheelbase_mm=None, command=None,
                  on_progress=None, on_done=None):
         self.out_dir = out_dir
         self._command, self._on_progress, self._on_done = command, on_progress, on_done
-        self._steps = [("reconstruct", reconstruct_args(image, keypoints, out_dir, view, wheelbase_mm))] + [
-            (key, ["parts", os.path.join(out_dir, f"{key}.step"), "--json"]) for key in ("wireframe", "body")]
-        self.listings = {}
+        self._tmp = tempfile.TemporaryDirectory(prefix="carbody-fc-")
+        self._wire_json = os.path.join(self._tmp.name, "wire.json")
+        self._steps = [("reconstruct", reconstruct_args(image, keypoints, out_dir, view, wheelbase_mm)),
+                       ("wireframe", wireframe_args(os.path.join(out_dir, "wireframe.step"), self._wire_json))]
         self.current = None
 
     @property
@@ -350,37 +400,41 @@ class ReconstructJob:
         if self._on_progress:
             self._on_progress(text)
 
+    def _finish(self, ok, result):
+        self._steps = []
+        self.current = None
+        self._tmp.cleanup()
+        if self._on_done:
+            self._on_done(ok, result)
+
     def _next(self):
         if not self._steps:
-            self.current = None
-            if self._on_done:
-                self._on_done(True, self.listings)
+            try:
+                with open(self._wire_json) as f:
+                    wire_json = json.load(f)
+            except (OSError, ValueError) as exc:
+                self._finish(False, f"carbody wrote no wireframe JSON: {exc}")
+                return
+            self._finish(True, wire_json)
             return
         key, args = self._steps.pop(0)
         if key != "reconstruct":
             self._say(f"reading the {key} back")
 
         def line(text):
-            if text.startswith(self.STAGE_PREFIX):
+            if text.startswith(STAGE_PREFIX):
                 self._say(text[len("carbody: "):])
 
         def done(ok, stdout, message):
-            if not ok:
-                self._steps = []
-                self.current = None
-                if self._on_done:
-                    self._on_done(False, message)
-                return
-            if key != "reconstruct":
-                self.listings[key] = json.loads(stdout)
-            self._next()
+            if ok:
+                self._next()
+            else:
+                self._finish(False, message)
 
         try:
             self.current = CarbodyProcess(args, line, done, self._command).start()
         except CarbodyWorkbenchError as exc:
-            self.current = None
-            if self._on_done:
-                self._on_done(False, str(exc))
+            self._finish(False, str(exc))
 
 
 def line_up_photo(doc, image, report):
