@@ -1,6 +1,6 @@
 """End to end over the library, each template left out: photo → view → fit → body, at every view.
 
-For each of the 14 templates: drop it (with its expansions) from the library; surface its own
+For each template: drop it (with its expansions) from the library; surface its own
 wireframe and render it (VTK, off-screen) as the shipped example is rendered — a street photo,
 1000 × 640 px, from a pinhole camera 7 m from the car's centre at 6° elevation — at each of the
 24 view classes (0°–345° by 15°: the right side too); mark the keypoints that camera sees by

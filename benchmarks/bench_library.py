@@ -1,4 +1,4 @@
-"""Library load time: cold (read 14 STEP files, normalise, expand) and warm (disk cache).
+"""Library load time: cold (read every template STEP file, normalise, expand) and warm (disk cache).
 
 Run: .venv/bin/python benchmarks/bench_library.py   (prints a Markdown table)
 """

@@ -7,7 +7,7 @@
     body = carbody.surface_wireframe(edited)          # the body follows the edit
 
 The pipeline, one module per stage: ``topology`` (curves, keypoints, regions as data) ->
-``templates`` (14 real cars, STEP) -> ``library`` (normalised, expanded model matrix S) ->
+``templates`` (real cars, STEP) -> ``library`` (normalised, expanded model matrix S) ->
 ``view`` (view classifier) -> ``fit`` (keypoints -> wireframe) -> ``surface`` (regions ->
 skeleton -> Bezier faces -> shell) -> ``occ`` (the OCCT boundary: STEP in/out, faces, sewing,
 checks); ``pipeline`` runs them all. Heavy libraries load on first use, not on import.

@@ -1,13 +1,14 @@
 """The model library (paper II.E): normalised templates expanded by axis scalings into S.
 
 Each template is normalised so its front wheel centre is (y, z) = (0, 0) and its rear wheel
-centre (1000, 0); x scales by the same factor. Expansion, as the paper does it:
+centre (1000, 0); x scales by the same factor. Expansion, as the paper does it (models per
+template; the paper's 14 templates give 84 -> 588 -> 3528, however many the manifest lists):
 
-1. heights: z of points above the wheel-centre line x {0.7, 0.8, 0.9, 1.1, 1.2}   (14 -> 84)
-2. overhangs: the front overhang x {0.8, 0.9, 1.1} and, separately, the rear    (84 -> 588)
+1. heights: z of points above the wheel-centre line x {0.7, 0.8, 0.9, 1.1, 1.2}   (1 -> 6)
+2. overhangs: the front overhang x {0.8, 0.9, 1.1} and, separately, the rear    (6 -> 42)
    overhang x {0.8, 0.9, 1.1}, each about its own boundary point (the front of the front
    wheel arch, the rear of the rear one), so curves stay joined
-3. widths: all x x {0.7, 0.8, 0.9, 1.1, 1.2}                                    (588 -> 3528)
+3. widths: all x x {0.7, 0.8, 0.9, 1.1, 1.2}                                    (42 -> 252)
 
 Every scaling is a continuous map of space, so curve ends that coincide before still coincide
 after. The shape matrix S is (3 x 280, N) = (840, N): column j is model j's shape vector

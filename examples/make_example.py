@@ -1,4 +1,4 @@
-"""Make the shipped example: a photo of a car that is NOT one of the 14 templates.
+"""Make the shipped example: a photo of a car that is NOT one of the templates.
 
 A compact crossover is built by the template builder from its own design table, surfaced by our
 pipeline, rendered off-screen (VTK) at front 30° with a little elevation by a perspective camera

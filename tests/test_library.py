@@ -1,4 +1,5 @@
-"""The library (paper II.E): normalised, expanded 14 -> 84 -> 588 -> 3528, cached on disk."""
+"""The library (paper II.E): normalised, expanded x6 -> x42 -> x252 per template (the paper's 14
+templates: 84 -> 588 -> 3528), cached on disk. Counts come from the template manifest."""
 from __future__ import annotations
 
 import json
@@ -31,14 +32,15 @@ def test_normalising_undoes_a_pitch_and_offset(templates, topology):
     assert normalise(moved, topology) == pytest.approx(normalise(pts, topology), abs=1e-9)
 
 
-@pytest.mark.parametrize("expansion, count", [
-    (Expansion(front_overhang=(), rear_overhang=(), width=()), 84),
-    (Expansion(width=()), 588),
-    (Expansion(), 3528),
+@pytest.mark.parametrize("expansion, per_template", [
+    (Expansion(front_overhang=(), rear_overhang=(), width=()), 6),
+    (Expansion(width=()), 42),
+    (Expansion(), 252),
 ])
-def test_each_expansion_step_counts_as_the_paper(templates, topology, expansion, count):
+def test_each_expansion_step_counts_as_the_paper(templates, topology, expansion, per_template):
     points, index, factors = expand(_base(templates, topology), expansion, topology)
-    assert len(points) == len(index) == len(factors) == count
+    assert expansion.models_per_template == per_template
+    assert len(points) == len(index) == len(factors) == per_template * len(templates)
 
 
 def test_curves_that_shared_an_end_still_share_it_after_every_scaling(templates, topology):
@@ -66,12 +68,15 @@ def test_overhang_scaling_stretches_only_the_overhang(templates, topology):
 
 
 def test_library_matrix_and_leave_one_out(library):
-    assert library.S.shape == (840, 3528)
-    assert len(library.template_names) == 14
-    assert np.bincount(library.template_index).tolist() == [252] * 14
+    from carbody.templates import load_manifest
+
+    n = len(load_manifest())
+    assert library.S.shape == (840, 252 * n)
+    assert library.template_names == [row["name"] for row in load_manifest()]
+    assert np.bincount(library.template_index).tolist() == [252] * n
     loo = library.without(library.template_names[4])
-    assert loo.n_models == 3276 and library.template_names[4] not in loo.template_names
-    assert np.bincount(loo.template_index).tolist() == [252] * 13
+    assert loo.n_models == 252 * (n - 1) and library.template_names[4] not in loo.template_names
+    assert np.bincount(loo.template_index).tolist() == [252] * (n - 1)
 
 
 def test_the_cache_is_rebuilt_when_a_template_changes(template_copy, templates):
@@ -95,9 +100,12 @@ def test_a_larger_library_needs_no_code_change(templates, topology):
     base = _base(templates, topology)
     doubled = np.concatenate([base, base * [1.05, 1, 1]])
     points, index, _ = expand(doubled, finer, topology)
-    assert len(points) == 28 * 8 * 7 * 5 and index.max() == 27
+    assert len(points) == 2 * len(base) * 8 * 7 * 5 and index.max() == 2 * len(base) - 1
 
 
 def test_cli_library_json():
+    from carbody.templates import load_manifest
+
+    n = len(load_manifest())
     data = json.loads(run_cli("library", "--json", check=True).stdout)
-    assert data["templates"] == 14 and data["models"] == 3528 and data["shape"] == [840, 3528]
+    assert data["templates"] == n and data["models"] == 252 * n and data["shape"] == [840, 252 * n]

@@ -43,9 +43,9 @@ def _list(args) -> int:
     if args.json:
         print(json.dumps(rows, indent=1))
     else:
-        print(f"{'name':32s} {'class':10s} {'length':>7s} {'width':>6s} {'height':>6s} {'wheelbase':>9s}")
+        print(f"{'name':32s} {'class':11s} {'length':>7s} {'width':>6s} {'height':>6s} {'wheelbase':>9s}")
         for r in rows:
-            print(f"{r['name']:32s} {r['class']:10s} {r['length_mm']:7.0f} {r['width_mm']:6.0f} "
+            print(f"{r['name']:32s} {r['class']:11s} {r['length_mm']:7.0f} {r['width_mm']:6.0f} "
                   f"{r['height_mm']:6.0f} {r['wheelbase_mm']:9.0f}")
     return 0
 

@@ -82,6 +82,39 @@ CLASS_PROFILES: dict[str, dict[str, float]] = {
         belt_front_h=0.58, belt_rear_h=0.61, sill_h=0.28, b_pillar_y=0.52, window_rear_y=1.12,
         roof_w=0.76, belt_w=0.93, tail_setback=0.012,
     ),
+    # Superminis: a short nose and a tail cut off just behind the rear wheel, an upright hatch
+    # and glass well inboard of the shoulders (a narrow, tall cabin on a short wheelbase).
+    "city": dict(
+        front_bumper_h=0.16, nose_h=0.55, cowl_y=0.22, cowl_h=0.66, roof_front_y=0.56,
+        roof_rear_y=1.13, deck_y=1.19, deck_h=0.66, tail_h=0.60, rear_bumper_h=0.19,
+        belt_front_h=0.63, belt_rear_h=0.68, sill_h=0.30, b_pillar_y=0.64, window_rear_y=1.0,
+        roof_w=0.74, belt_w=0.93, tail_setback=0.012,
+    ),
+    # Compact MPVs (Sienta, Freed, Touran): the minivan's one-box cabin on a small car's
+    # platform, so a shorter rear overhang than "mpv" and the windshield base nearer the axle.
+    "compact_mpv": dict(
+        front_bumper_h=0.16, nose_h=0.50, cowl_y=0.08, cowl_h=0.58, roof_front_y=0.40,
+        roof_rear_y=1.16, deck_y=1.205, deck_h=0.58, tail_h=0.54, rear_bumper_h=0.19,
+        belt_front_h=0.57, belt_rear_h=0.61, sill_h=0.28, b_pillar_y=0.50, window_rear_y=1.06,
+        roof_w=0.77, belt_w=0.94, tail_setback=0.01,
+    ),
+    # Small crossovers: a hatchback raised on bigger wheels (higher bumpers and belt), the roof
+    # falling to a raked tailgate, so the side glass ends well ahead of the tail.
+    "crossover": dict(
+        front_bumper_h=0.19, nose_h=0.56, cowl_y=0.27, cowl_h=0.65, roof_front_y=0.58,
+        roof_rear_y=1.16, deck_y=1.24, deck_h=0.64, tail_h=0.59, rear_bumper_h=0.22,
+        belt_front_h=0.62, belt_rear_h=0.67, sill_h=0.31, b_pillar_y=0.66, window_rear_y=1.04,
+        roof_w=0.72, belt_w=0.93, tail_setback=0.02,
+    ),
+    # Cab-over vans: the windshield base sits ahead of the front axle (negative cowl_y) above a
+    # short sloping nose, a long flat roof ends at an upright tailgate; the glass is low and
+    # wide (a tall, square cross-section).
+    "van": dict(
+        front_bumper_h=0.14, nose_h=0.40, cowl_y=-0.15, cowl_h=0.50, roof_front_y=0.08,
+        roof_rear_y=1.36, deck_y=1.40, deck_h=0.55, tail_h=0.50, rear_bumper_h=0.17,
+        belt_front_h=0.50, belt_rear_h=0.52, sill_h=0.25, b_pillar_y=0.35, window_rear_y=1.25,
+        roof_w=0.85, belt_w=0.95, tail_setback=0.006,
+    ),
 }
 
 #: Defaults shared by every class (mm unless said otherwise).
