@@ -5,6 +5,8 @@ holds a hand-typed list. The data file is ``carbody/data/topology.json``.
 """
 from __future__ import annotations
 
+import functools
+
 import json
 from dataclasses import dataclass
 from functools import cache
@@ -95,10 +97,13 @@ class Topology:
                 return c.index * POINTS_PER_CURVE + POINTS_PER_CURVE - 1
         raise TopologyError(f"unknown junction {junction!r}")
 
-    @property
+    @functools.cached_property
     def keypoint_point_indices(self) -> np.ndarray:
-        """(35,) int: control-point index of each keypoint, in keypoint order."""
-        return np.array([self.junction_point_index(k.name) for k in self.keypoints])
+        """(35,) int: control-point index of each keypoint, in keypoint order (computed once,
+        read-only)."""
+        out = np.array([self.junction_point_index(k.name) for k in self.keypoints])
+        out.setflags(write=False)
+        return out
 
     def junction_groups(self) -> dict[str, list[int]]:
         """Every control-point index lying on each junction (curve ends that must coincide)."""

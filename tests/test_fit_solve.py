@@ -751,3 +751,15 @@ def test_the_report_s_camera_projects_points_as_the_fit_does(library):
     points = res.wireframe.control_points[::7]
     camera = json.loads(json.dumps(camera_report(res)))
     np.testing.assert_allclose(project_with_camera(camera, points), res.project_points(points), atol=1e-6)
+
+
+def test_five_marks_are_enough_for_the_search(library):
+    """Five marks are the fewest the fit takes (README): the search keeps them all and finds a
+    car and a view for them."""
+    _, loo, truth = _left_out(library, "Volkswagen Golf Mk7")
+    slots, uv = _observe(truth, View(40, 10), noise=1.0)
+    names = ["nose_centre", "front_top_corner", "roof_front_corner", "front_arch_top", "rear_arch_top"]
+    marks = {s.name: tuple(p) for s, p in zip(slots, uv) if s.name in names}
+    assert len(marks) == 5
+    fit = fit_wireframe(marks, View(40, 10), loo)
+    assert len(fit.slots) == 5 and not fit.diagnostics.rejected

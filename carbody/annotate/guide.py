@@ -23,7 +23,7 @@ from carbody.camera import View, project
 @functools.cache
 def reference_car() -> np.ndarray:
     """(280, 3) the library's mean car, normalised units: the car the page draws before a fit."""
-    from carbody.pipeline import default_library
+    from carbody.library import default_library
 
     return default_library().S.mean(axis=1).reshape(-1, 3)
 

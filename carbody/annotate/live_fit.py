@@ -108,7 +108,7 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
         return LiveFit(None, f"{MIN_MARKS - len(marks)} more mark(s) and the car is fitted", quick, 0.0)
     policy = quick_policy(len(marks), scan_from) if quick else marks_policy(len(marks))
     if library is None:
-        from carbody.pipeline import default_library
+        from carbody.library import default_library
 
         library = default_library()
     try:

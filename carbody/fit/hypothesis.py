@@ -142,6 +142,12 @@ class Scorer:
         self._solves = [0]  # shared by the scorer's copies (with_marks, with_noise): the fit's whole cost
 
     @property
+    def fewest_kept(self) -> int:
+        """The fewest marks a hypothesis explains: the policy's ``min_kept``, or all of them when
+        there are fewer (five marks are a fit's least)."""
+        return min(self.policy.min_kept, len(self.marks.slots))
+
+    @property
     def solves(self) -> int:
         """How many solves this scorer and its copies have made."""
         return self._solves[0]
@@ -214,7 +220,7 @@ class Scorer:
 
         hidden = self.hidden(view)
         kept = ~hidden if kept is None else (np.asarray(kept, dtype=bool) & ~hidden)
-        if kept.sum() < self.policy.min_kept or hidden.sum() > self.policy.max_rejected_fraction * len(hidden):
+        if kept.sum() < self.fewest_kept or hidden.sum() > self.policy.max_rejected_fraction * len(hidden):
             return None  # the names say the photo is not taken from here
         try:
             sol = self.solve(view, kept, cheap)

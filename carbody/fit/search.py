@@ -48,14 +48,20 @@ def with_perspective(view: View, rho: float, aim: tuple[float, float, float]) ->
                 (0.0, 0.0, 0.0) if far else aim)
 
 
-def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool) -> tuple[Hypothesis, list[Hypothesis]]:
-    """The best hypothesis round the car, and the scan's hypotheses best first.
+def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
+                 adapt=None) -> tuple[Hypothesis, list[Hypothesis], Scorer]:
+    """The best hypothesis round the car, the scan's hypotheses best first, and the scorer of
+    the best.
 
     Args:
         cameras: the scan's cameras at azimuth 0 (orthographic, and pinholes at the distances
             to start from: their distance and aim), turned round the car and raised to each
             scan elevation here.
         find_perspective: refine the pinholes' perspective too (the distance is to be found).
+        adapt: ``adapt(scorer, hypothesis) -> scorer``, called with the best candidate once the
+            candidates have settled with the cheap solve: a scorer for what that hypothesis
+            says of the marks (:func:`carbody.fit.robust.marks_noise`), under which the
+            candidates settle again when it is another one.
     """
     policy = scorer.policy
     scanned = []
@@ -73,14 +79,22 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool) ->
     scanned.sort(key=lambda h: h.score)
     free = ("azimuth", "elevation") + (("perspective",) if find_perspective else ())
     candidates = distinct(scanned, policy.refined_candidates, policy.candidate_separation_deg)
-    coarse = [refine(scorer, c, free, cheap=True, evaluations=policy.coarse_evaluations, tolerance=0.5)
-              for c in candidates]
+
+    def settled(scorer: Scorer) -> list[Hypothesis]:
+        return [refine(scorer, c, free, cheap=True, evaluations=policy.coarse_evaluations, tolerance=0.5)
+                for c in candidates]
+
+    coarse = settled(scorer)
+    if adapt is not None:
+        adapted = adapt(scorer, min(coarse, key=lambda h: h.score))
+        if adapted is not scorer:
+            scorer, coarse = adapted, settled(adapted)
     k = int(np.argmin([h.score for h in coarse]))
     # polished from where the cheap solve settled and from the scan's view: the full solve's
     # evidence has its own small valleys, and the cheap one's optimum can sit in another
     polished = [refine(scorer, start, free, cheap=False, evaluations=policy.polish_evaluations,
                        tolerance=policy.polish_tolerance_deg) for start in (coarse[k], candidates[k])]
-    return min(polished, key=lambda h: h.score), scanned
+    return min(polished, key=lambda h: h.score), scanned, scorer
 
 
 def distinct(hypotheses: list[Hypothesis], count: int, separation_deg: float) -> list[Hypothesis]:
@@ -127,7 +141,7 @@ def refine(scorer: Scorer, start: Hypothesis, free: tuple[str, ...], cheap: bool
         view = view_at(x)
         hidden = scorer.hidden(view)
         kept = start.kept & ~hidden
-        if kept.sum() < policy.min_kept or hidden.sum() > policy.max_rejected_fraction * len(hidden):
+        if kept.sum() < scorer.fewest_kept or hidden.sum() > policy.max_rejected_fraction * len(hidden):
             return np.inf
         try:
             return scorer.score(view, kept, scorer.solve(view, kept, cheap))[0]

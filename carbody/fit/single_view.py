@@ -9,9 +9,9 @@ The algorithm, in :func:`fit_wireframe`:
    (:func:`~carbody.fit.search.search_views`): each hypothesis is scored by one measure
    (:class:`~carbody.fit.hypothesis.Scorer`), the marks it cannot see and those the others say
    are misplaced left out and charged (:mod:`carbody.fit.robust`); a view kept as given is
-   scored alone; read off the marks there how far they stray from the library, as click noise
-   and as the car's own features (:func:`~carbody.fit.robust.marks_noise`), and search again
-   when they stray further than the prior assumed;
+   scored alone; read off the marks at the best candidate how far they stray from the library,
+   as click noise and as the car's own features (:func:`~carbody.fit.robust.marks_noise`), and
+   settle the candidates again at that when it is not what the prior assumed;
 3. try the names the marks left out suggest — a left/right pair exchanged, a mark clicked under
    its twin's name — as discrete hypotheses of the same measure (:func:`~carbody.fit.robust.twin_exchanges`);
 4. correct the camera where that needs refits (:mod:`carbody.fit.fit_camera`): a told distance
@@ -87,11 +87,10 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         scorer = Scorer(library, Marks(tuple(slots), uv), options, wheelbase_mm, prior, image_size)
         cameras = search_plan.scan_cameras(library, wheelbase_mm, options.policy)
         cameras = [replace(c, roll=prior.roll_deg) for c in cameras]
-        hypothesis, searched = _located(scorer, cameras, search_plan, prior, options)
-        noise = marks_noise(scorer, hypothesis) if options.robust_marks else (1.0, 1.0)
-        if noise != (1.0, 1.0):  # the marks stray further than the prior assumed: search again so
-            scorer = scorer.with_noise(*noise)
-            hypothesis, searched = _located(scorer, cameras, search_plan, prior, options)
+        # (an off-centre car's obliquity reads as noise until the camera is turned to it)
+        turns = plan.principal is not None and plan.distance is not None
+        hypothesis, searched, scorer = _located(scorer, cameras, search_plan, prior, options,
+                                                adapt=options.robust_marks and not turns)
         polish = _polisher(options, search_plan)
         hypothesis, scorer = twin_exchanges(scorer, hypothesis, polish)
         by_distance = None
@@ -106,6 +105,11 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
                                _turned_refit(scorer, hypothesis, plan, options, _polisher(options, plan)))
         if turn.to_photo is not None:
             scorer = scorer.with_marks(turn.hypothesis.marks)
+        if turns and options.robust_marks:
+            adapted = _at_marks_noise(scorer, turn.hypothesis)
+            if adapted is not scorer:
+                scorer, turn.hypothesis = adapted, polish(adapted, adapted.hypothesis(turn.hypothesis.view)
+                                                          or turn.hypothesis, free=_polisher_free(options, plan))
         wheelbase, source = (wheelbase_mm, "told") if wheelbase_mm is not None else \
             (by_distance, "camera distance") if by_distance is not None else \
             (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
@@ -143,12 +147,14 @@ def _view_prior(view, options: FitOptions) -> ViewPrior:
 
 
 def _located(scorer: Scorer, cameras: list[View], plan: CameraPlan, prior: ViewPrior,
-             options: FitOptions) -> tuple[Hypothesis, dict | None]:
+             options: FitOptions, adapt: bool) -> tuple[Hypothesis, dict | None, Scorer]:
     """The best hypothesis: searched round the car (and what the search saw), or at the view
-    kept as given (its distance still found when asked)."""
+    kept as given (its distance still found when asked); and its scorer, at the marks' own
+    noise (:func:`_at_marks_noise`) when ``adapt``."""
+    adapt = _at_marks_noise if adapt else None
     if options.refine:
-        best, scanned = search_views(scorer, cameras, plan.finds_perspective)
-        return best, _search_summary(scanned, best, prior, scorer, len(cameras))
+        best, scanned, scorer = search_views(scorer, cameras, plan.finds_perspective, adapt)
+        return best, _search_summary(scanned, best, prior, scorer, len(cameras)), scorer
     start = prior.start
     kept = [scorer.hypothesis(View(start.azimuth, start.elevation, start.roll, c.distance, c.aim)) for c in cameras]
     kept = [h for h in kept if h is not None]
@@ -156,15 +162,32 @@ def _located(scorer: Scorer, cameras: list[View], plan: CameraPlan, prior: ViewP
         raise FitError(f"no library car explains these keypoints from the view given ({start.azimuth:g}°): "
                        "check the view and the keypoints' names")
     best = min(kept, key=lambda h: h.score)
+    if adapt is not None:
+        adapted = adapt(scorer, best)
+        if adapted is not scorer:
+            scorer, best = adapted, adapted.hypothesis(best.view) or best
     if plan.finds_perspective:
         best = _polisher(options, plan)(scorer, best)
-    return best, None
+    return best, None, scorer
+
+
+def _at_marks_noise(scorer: Scorer, hypothesis: Hypothesis) -> Scorer:
+    """The scorer at what the marks say of themselves at a hypothesis' view (their click noise,
+    the car's own features: :func:`~carbody.fit.robust.marks_noise`), or ``scorer`` itself when
+    that is what it already assumes."""
+    noise, field = marks_noise(scorer, hypothesis)
+    return scorer if (noise, field) == (scorer.noise_factor, scorer.field_scale) else scorer.with_noise(noise, field)
+
+
+def _polisher_free(options: FitOptions, plan: CameraPlan) -> tuple[str, ...]:
+    """What the fit refines: the angles when the view is searched, the perspective when it is found."""
+    return (("azimuth", "elevation") if options.refine else ()) + (("perspective",) if plan.finds_perspective else ())
 
 
 def _polisher(options: FitOptions, plan: CameraPlan):
     """``polish(scorer, hypothesis[, free])``: a local refinement with the full solve of what the
-    fit refines (the angles when the view is searched, the perspective when it is found)."""
-    default = (("azimuth", "elevation") if options.refine else ()) + (("perspective",) if plan.finds_perspective else ())
+    fit refines (:func:`_polisher_free`)."""
+    default = _polisher_free(options, plan)
     policy = options.policy
 
     def polish(scorer: Scorer, hypothesis: Hypothesis, free: tuple[str, ...] = default) -> Hypothesis:

@@ -34,7 +34,8 @@ car's centre: its projection is linearised at the previous round's shape and the
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -212,7 +213,8 @@ class MixSolution:
     Attributes:
         shape: (840,) float, the new model's shape vector, normalised units (S·H); None when
             :func:`solve_simplex` was not given S.
-        H: (N,) float, library weights, ΣH = 1 (``"paper"``: 0 ≤ H ≤ 1 and sparse).
+        weights: (N,) float, library weights, ΣH = 1 (``"paper"``: 0 ≤ H ≤ 1 and sparse), or
+            None until first asked for as ``H`` (``weights_of`` computes them).
         scale: s, pixels per normalised unit.
         offset: (2,) float, (u0, v0) pixels of the car-frame origin.
         residual_px: (k,) float, reprojection distance per keypoint, pixels.
@@ -234,7 +236,7 @@ class MixSolution:
     """
 
     shape: np.ndarray | None
-    H: np.ndarray | None
+    weights: np.ndarray | None
     scale: float
     offset: np.ndarray
     residual_px: np.ndarray
@@ -247,6 +249,15 @@ class MixSolution:
     evidence_px: float | None = None
     leverage: np.ndarray | None = None
     rho: float | None = None
+    weights_of: "Callable[[], np.ndarray | None] | None" = field(default=None, repr=False)
+
+    @property
+    def H(self) -> np.ndarray | None:
+        """(N,) library weights, computed when first asked (the search's hundreds of solves
+        never need them: one product of a library-sized matrix each)."""
+        if self.weights is None and self.weights_of is not None:
+            self.weights = self.weights_of()
+        return self.weights
 
 
 @dataclass
@@ -481,7 +492,7 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
     offset, pred = _image_fit(M, kp, z, scale, const)
     rvec = ((pred - z) / rho).ravel()
     shape = shapes[:, support] @ H[support] if shapes is not None else None
-    return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
+    return MixSolution(shape=shape, weights=H, scale=float(scale), offset=offset,
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
                        residual_vector=rvec, support=support, view=view)
 
@@ -559,9 +570,8 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
     rvec = np.concatenate([((pred - z) / rho).ravel(), prior_part])
     # the centred image has 2k − 2 free rows
     posterior.inflation = max(1.0, float(rvec @ rvec) / (prior_weight * max(2 * len(z) - 2, 1)))
-    H = model.weights(a)
     m = 2 * len(z) - 2
-    return MixSolution(shape=shape, H=H, scale=float(scale), offset=offset,
+    return MixSolution(shape=shape, weights=None, weights_of=lambda: model.weights(a), scale=float(scale), offset=offset,
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
                        residual_vector=rvec, evidence=evidence, posterior=posterior,
                        evidence_px=evidence + 0.5 * m * np.log(2.0 * np.pi * prior_weight) + m * np.log(rho),
