@@ -120,24 +120,23 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     v.set_defaults(func=run_visible)
 
 
-def _truth(spec: str):
+def load_truth(spec: str):
+    """``--truth``: a ground-truth wireframe from a STEP file (``.step``/``.stp``) or a template name."""
     from carbody.templates import load_template
     from carbody.wireframe import read_wireframe
 
-    return read_wireframe(spec) if Path(spec).is_file() else load_template(spec)
+    return read_wireframe(spec) if Path(spec).suffix.lower() in (".step", ".stp") else load_template(spec)
 
 
 def run_photo_plane(args: argparse.Namespace) -> int:
     import json
     import math
 
-    from carbody.errors import FitError, ImageError
+    from carbody.errors import FitError
     from carbody.fit.photo_plane import side_plane
 
     if not (math.isfinite(args.width) and args.width > 0):
         raise FitError(f"--width {args.width:g} mm is not a positive size")
-    if not Path(args.image).is_file():
-        raise ImageError(f"{args.image}: no such image file")
     print(json.dumps(side_plane(args.image, args.width).as_dict()))
     return 0
 
@@ -166,7 +165,7 @@ def run_fit(args: argparse.Namespace) -> int:
     h, w = image.shape[:2]
     check_image_size(ann, (w, h))
     library = library_without(args.exclude_template)
-    truth = _truth(args.truth) if args.truth else None
+    truth = load_truth(args.truth) if args.truth else None
     chart = Path(args.report).with_suffix(".errors.png") if args.report and truth is not None else None
     if truth is not None and not args.report:
         raise FitError("--truth needs --report: the errors go into the report, and their chart next to it "
