@@ -11,6 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
+from carbody.errors import CarbodyError
+
+
+class PartsError(CarbodyError):
+    """A STEP file whose named parts cannot be listed."""
+
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("parts", help="list the named curves and faces of a carbody STEP file")
@@ -39,26 +45,36 @@ def face_region(name: str) -> str:
 
 
 def list_parts(path: Path) -> dict:
-    """{product, curves: [{name, centre}], faces: [{name, region, centre, area}]} of a STEP file."""
+    """{product, curves: [{name, centre}], faces: [{name, region, centre, area}]} of a STEP file
+    carbody writes: a wireframe, a body, or the assembly of both (``car.step``).
+
+    Raises:
+        PartsError: the file is unreadable, or names no curve and no face.
+    """
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
     from carbody.occ.step_body import read_body_step
     from carbody.occ.step_curves import read_curves_step
 
-    body = read_body_step(path)
-    if body.faces:
-        faces = []
-        for name, _, face in body.faces:
-            props = GProp_GProps()
-            BRepGProp.SurfaceProperties_s(face, props)
-            c = props.CentreOfMass()
-            faces.append({"name": name, "region": face_region(name), "centre": [c.X(), c.Y(), c.Z()],
-                          "area": props.Mass()})
-        return {"product": body.product, "curves": [], "faces": faces}
-    product, curves = read_curves_step(path)
-    return {"product": product, "curves": [{"name": c.name, "centre": curve_centre(c.poles)} for c in curves],
-            "faces": []}
+    try:
+        body = read_body_step(path)
+        product, curves = read_curves_step(path)
+    except CarbodyError as exc:
+        raise PartsError(str(exc)) from None
+    faces = []
+    for name, _, face in body.faces:
+        props = GProp_GProps()
+        BRepGProp.SurfaceProperties_s(face, props)
+        c = props.CentreOfMass()
+        faces.append({"name": name, "region": face_region(name), "centre": [c.X(), c.Y(), c.Z()],
+                      "area": props.Mass()})
+    named = [c for c in curves if c.name and len(c.poles)]
+    if not named and not faces:
+        raise PartsError(f"{path}: names no curve and no face (not a STEP file carbody wrote, or its names "
+                         "were lost on saving)")
+    return {"product": body.product or product, "faces": faces,
+            "curves": [{"name": c.name, "centre": curve_centre(c.poles)} for c in named]}
 
 
 def _parts(args) -> int:

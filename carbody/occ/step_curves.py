@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from carbody.errors import TemplateError
-from carbody.tolerances import STEP_ROUND_MM
+from carbody.tolerances import MAX_COORDINATE_MM, STEP_ROUND_MM
 
 
 @dataclass
@@ -154,7 +154,8 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
     Returns:
         (product name, curves in file order); curves the file leaves unnamed come last, named "".
     Raises:
-        TemplateError: the file is missing or not a readable STEP file.
+        TemplateError: the file is missing, not a regular file, too large or not a readable STEP
+            file, or a control point lies further than :data:`~carbody.tolerances.MAX_COORDINATE_MM`.
     """
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.StepBasic import StepBasic_Product
@@ -167,9 +168,9 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
 
     from carbody.occ.shapes import sub_shapes
 
-    path = Path(path)
-    if not path.is_file():
-        raise TemplateError(f"{path}: no such file")
+    from carbody.inputs import MAX_STEP_BYTES, input_file
+
+    path = input_file(path, "STEP file", TemplateError, MAX_STEP_BYTES)
     _init_step_statics()
     reader = STEPControl_Reader()
     try:
@@ -208,7 +209,13 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
             geom = StepToGeom.MakeCurve_s(step_curve, factors)
             if geom is None:
                 raise TemplateError(f"{path}: curve {name!r} has geometry OCCT cannot read")
-            curves.append(_geom_curve(geom, name, reversed_))
+            curve = _geom_curve(geom, name, reversed_)
+            near = np.all(np.abs(curve.poles) <= MAX_COORDINATE_MM, axis=1)  # NaN is not near either
+            if not near.all():
+                far = curve.poles[~near][0]
+                raise TemplateError(f"{path}: curve {name!r} has a control point at {far.tolist()} mm, "
+                                    f"further than any car's ({MAX_COORDINATE_MM:g} mm from the origin)")
+            curves.append(curve)
     n_edges = len(sub_shapes(reader.OneShape(), "edge"))
     curves += [NamedCurve("", np.zeros((0, 3)))] * max(0, n_edges - len(curves))
     return product, curves
