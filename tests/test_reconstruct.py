@@ -167,7 +167,7 @@ def test_an_unwritable_output_folder_is_refused_before_any_work(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(KEYPOINTS), "--view", "30", "-o", str(blocker / "out"))
-    assert proc.returncode == 2 and len(lines) == 1 and "cannot write the output folder" in lines[0]
+    assert proc.returncode == 2 and len(lines) == 1 and "cannot create the output folder" in lines[0] and "is a file" in lines[0]
 
 
 def _other_side(marks: dict) -> dict:

@@ -31,16 +31,13 @@ def write_body_step(path: str | Path, shell, faces: list[tuple[str, tuple[float,
         faces: (face name, sRGB colour 0..1, TopoDS_Face of ``shell``).
         product_name: STEP product name (the car).
     """
-    from OCP.IFSelect import IFSelect_RetDone
     from OCP.Quantity import Quantity_Color, Quantity_TypeOfColor
-    from OCP.STEPCAFControl import STEPCAFControl_Writer
-    from OCP.STEPControl import STEPControl_AsIs
     from OCP.TCollection import TCollection_ExtendedString
     from OCP.TDataStd import TDataStd_Name
     from OCP.TDocStd import TDocStd_Document
     from OCP.XCAFDoc import XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
-    from carbody.occ.step_curves import _init_step_statics, atomic_write
+    from carbody.occ.step_curves import _init_step_statics, write_step_document
 
     _init_step_statics()
     doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
@@ -56,14 +53,7 @@ def write_body_step(path: str | Path, shell, faces: list[tuple[str, tuple[float,
         colour = Quantity_Color(*map(float, rgb), Quantity_TypeOfColor.Quantity_TOC_sRGB)
         colour_tool.SetColor(sub, colour, XCAFDoc_ColorType.XCAFDoc_ColorSurf)
 
-    def write(tmp: str) -> None:
-        writer = STEPCAFControl_Writer()
-        writer.SetNameMode(True)
-        writer.SetColorMode(True)
-        if not writer.Transfer(doc, STEPControl_AsIs) or writer.Write(tmp) != IFSelect_RetDone:
-            raise SurfaceError(f"{path}: OCCT could not write the STEP file")
-
-    return atomic_write(path, write)
+    return write_step_document(path, doc, SurfaceError)
 
 
 def read_body_step(path: str | Path) -> StepBody:

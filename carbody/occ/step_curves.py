@@ -7,6 +7,7 @@ XCAF label, so a file saved back by another CAD system that keeps the names read
 """
 from __future__ import annotations
 
+import io
 import os
 import tempfile
 from dataclasses import dataclass
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from carbody.errors import TemplateError
+from carbody.errors import CarbodyError, TemplateError
 from carbody.tolerances import MAX_COORDINATE_MM, STEP_ROUND_MM
 
 
@@ -74,10 +75,40 @@ def atomic_write(path: str | Path, write) -> Path:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual mode
         os.replace(tmp, path)
+    except OSError as exc:  # (a full disk): said of the file asked for, not of the temporary one
+        Path(tmp).unlink(missing_ok=True)
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def write_step_document(path: str | Path, doc, error: type[CarbodyError]) -> Path:
+    """Write an XCAF document (names and colours on) as AP214 STEP in millimetres, atomically.
+
+    OCCT writes into memory and Python writes the file, so that a full disk or a refused write
+    is the file system's own error (``OSError``, "no space left on device"), not OCCT's bare
+    "could not write".
+
+    Raises:
+        error: OCCT cannot translate the document.
+        OSError: the file cannot be written.
+    """
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPCAFControl import STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_AsIs
+
+    _init_step_statics()
+    writer = STEPCAFControl_Writer()
+    writer.SetNameMode(True)
+    writer.SetColorMode(True)
+    writer.SetLayerMode(True)
+    stream = io.BytesIO()
+    if not writer.Transfer(doc, STEPControl_AsIs) or writer.WriteStream(stream) != IFSelect_RetDone:
+        raise error(f"{path}: OCCT could not write the STEP file")
+    data = stream.getvalue()
+    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(data))
 
 
 def write_curves_step(path: str | Path, curves: list[NamedCurve] | list[tuple[str, np.ndarray]],
@@ -93,9 +124,6 @@ def write_curves_step(path: str | Path, curves: list[NamedCurve] | list[tuple[st
         the written path.
     """
     from OCP.BRep import BRep_Builder
-    from OCP.IFSelect import IFSelect_RetDone
-    from OCP.STEPCAFControl import STEPCAFControl_Writer
-    from OCP.STEPControl import STEPControl_AsIs
     from OCP.TCollection import TCollection_ExtendedString
     from OCP.TDataStd import TDataStd_Name
     from OCP.TDocStd import TDocStd_Document
@@ -121,13 +149,7 @@ def write_curves_step(path: str | Path, curves: list[NamedCurve] | list[tuple[st
         sub = shape_tool.AddSubShape(label, edge)
         TDataStd_Name.Set_s(sub, TCollection_ExtendedString(item.name))
 
-    def write(tmp: str) -> None:
-        writer = STEPCAFControl_Writer()
-        writer.SetNameMode(True)
-        if not writer.Transfer(doc, STEPControl_AsIs) or writer.Write(tmp) != IFSelect_RetDone:
-            raise TemplateError(f"{path}: OCCT could not write the STEP file")
-
-    return atomic_write(path, write)
+    return write_step_document(path, doc, TemplateError)
 
 
 def _geom_curve(curve, name: str, reversed_: bool = False) -> NamedCurve:

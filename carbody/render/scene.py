@@ -379,9 +379,9 @@ def save_png(image: np.ndarray, path: str | Path) -> Path:
     Raises:
         RenderError: not an image array, or the file cannot be written.
     """
-    import os
-
     import cv2
+
+    from carbody.occ.step_curves import atomic_write
 
     arr = np.asarray(image)
     if arr.dtype != np.uint8 or arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] not in (3, 4)):
@@ -389,14 +389,10 @@ def save_png(image: np.ndarray, path: str | Path) -> Path:
     path = Path(path)
     if arr.ndim == 3:
         arr = cv2.cvtColor(arr, cv2.COLOR_RGB2BGR if arr.shape[2] == 3 else cv2.COLOR_RGBA2BGRA)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.png")
+    ok, data = cv2.imencode(".png", arr)  # in memory: a full disk is then Python's error, which says so
+    if not ok:
+        raise RenderError(f"{path}: cannot encode the picture as PNG")
     try:
-        if not cv2.imwrite(str(tmp), arr):
-            raise RenderError(f"cannot write {path}")
-        os.replace(tmp, path)
+        return atomic_write(path, lambda tmp: Path(tmp).write_bytes(data.tobytes()))
     except OSError as exc:
-        raise RenderError(f"cannot write {path}: {exc.strerror or exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+        raise RenderError(f"{path}: cannot write it ({(exc.strerror or str(exc)).lower()})") from None
