@@ -54,7 +54,8 @@ def _render_dataset(args) -> int:
     vary = Variation(background=not (args.plain or args.no_background), colour=not (args.plain or args.no_colour),
                      elevation=not (args.plain or args.no_elevation))
     manifest = render_dataset(args.out_dir, count=args.count or DEFAULT_COUNT, seed=args.seed,
-                              bodies_per_template=args.bodies_per_template, vary=vary)
+                              bodies_per_template=args.bodies_per_template, vary=vary,
+                              progress=not args.quiet)
     print(manifest)
     return 0
 
@@ -66,7 +67,7 @@ def _train_view(args) -> int:
     check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                       threads=args.threads, schedule=args.schedule)
-    hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot)
+    hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot, progress=not args.quiet)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "
           f"({hist.seconds:.0f} s)")
     return 0

@@ -375,6 +375,7 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
     from tqdm import tqdm
 
     from carbody.library import load_library
+    from carbody.progress import bar_disabled
     from carbody.render import Scene, save_png
     from carbody.templates import load_templates
 
@@ -399,7 +400,7 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
     per_body = [count // len(bodies) + (i < count % len(bodies)) for i in range(len(bodies))]
     (out / "images").mkdir(parents=True, exist_ok=True)
     manifest_rows = []
-    bar = tqdm(total=count, desc="render-dataset", unit="img", disable=not progress)
+    bar = tqdm(total=count, desc="render-dataset", unit="img", disable=bar_disabled(not progress))
     n_done, carry, skipped = 0, 0, []
     for b, (spec, n_img) in enumerate(zip(bodies, per_body)):
         bar.set_postfix_str(spec.body_id)
