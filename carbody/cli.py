@@ -82,8 +82,16 @@ def main(argv: list[str] | None = None) -> int:
     # Libraries' log warnings (ezdxf cannot write its font cache under a read-only home) are not
     # the user's business: what goes wrong is said in carbody's own one line.
     logging.getLogger().addHandler(logging.NullHandler())
-    for signum in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(signum, _stop)
+    previous = {signum: signal.signal(signum, _stop) for signum in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        return _run(args)
+    finally:  # a caller in the same process (a test) gets its own handlers back
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the command ``args`` names; its errors as one line and an exit code."""
     try:
         return int(args.func(args) or 0)
     except CarbodyError as exc:

@@ -52,19 +52,20 @@ def run_freecad(args: argparse.Namespace) -> int:
     from carbody.inputs import read_json
     from carbody.progress import progress
 
+    inputs = {f"the folder's {name}": args.folder / name for name in ("wireframe.step", "body.step", "report.json")}
+    check_not_inputs({"--output": args.output}, inputs)
+    check_output_file(args.output, FREECAD)
     exe = args.freecadcmd if os.path.isabs(args.freecadcmd) else shutil.which(args.freecadcmd)
     if not exe or not os.path.isfile(exe):
         raise FreeCADError(f"FreeCAD is not installed: {args.freecadcmd!r} not found "
                            "(Debian: apt-get install freecad-python3)")
-    check_output_file(args.output, FREECAD)
-    inputs = {f"the folder's {name}": args.folder / name for name in ("wireframe.step", "body.step", "report.json")}
-    for name, path in inputs.items():
+    for path in inputs.values():
         if not path.is_file():
             raise FreeCADError(f"{args.folder}: no {path.name} (not a `carbody reconstruct` folder)")
     report = read_json(args.folder / "report.json", "reconstruction report", FreeCADError)
     if not isinstance(report, dict) or not isinstance(report.get("image"), (str, type(None))):
         raise FreeCADError(f"{args.folder / 'report.json'}: not a `carbody reconstruct` report")
-    check_not_inputs({"--output": args.output}, {**inputs, "the photo": report.get("image")})
+    check_not_inputs({"--output": args.output}, {"the photo": report.get("image")})
     with progress(("FreeCAD",), args.quiet) as bar, staged([args.output]) as at, \
             tempfile.TemporaryDirectory(prefix="carbody-fc-") as tmp:
         bar.start("FreeCAD")

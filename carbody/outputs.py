@@ -198,6 +198,10 @@ def staged(targets: Iterable[str | Path]) -> Iterator[Callable[[str | Path], Pat
 
         try:
             yield at
+            for target, new in where.items():
+                if not new.is_file():
+                    raise OutputError(f"{target}: was not written")
+            _move_into_place(list(where.items()))
         except OSError as exc:  # named for the user's file, not the staging folder's
             named = _unstaged(f"{exc.filename}: " if exc.filename else "", stages, targets)
             raise OutputError(f"{named}{(exc.strerror or str(exc)).lower()}") from None
@@ -206,10 +210,6 @@ def staged(targets: Iterable[str | Path]) -> Iterator[Callable[[str | Path], Pat
             if text == str(exc):
                 raise
             raise type(exc)(text) from None
-        for target, new in where.items():
-            if not new.is_file():
-                raise OutputError(f"{target}: was not written")
-        _move_into_place(list(where.items()))
     finally:
         for folder in stages.values():
             shutil.rmtree(folder, ignore_errors=True)
