@@ -47,22 +47,26 @@ def input_file(path: str | Path, what: str, error: type[CarbodyError],
         st = os.stat(path)
     except OSError as exc:
         if exc.errno == errno.ELOOP:
-            raise error(f"{path}: a loop of symbolic links, not a {what}") from None
+            raise error(f"{path}: a loop of symbolic links, not {_a(what)}") from None
         if exc.errno in (errno.ENOENT, errno.ENOTDIR):
             raise error(f"{path}: no such {what}") from None
         raise error(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
     except ValueError as exc:  # a NUL byte in the name
         raise error(f"{path!r}: not a file name ({exc})") from None
     if stat.S_ISDIR(st.st_mode):
-        raise error(f"{path}: is a folder, not a {what}")
+        raise error(f"{path}: is a folder, not {_a(what)}")
     if not stat.S_ISREG(st.st_mode):
-        raise error(f"{path}: not a regular file (a device or a pipe), not a {what}")
+        raise error(f"{path}: not a regular file (a device or a pipe), not {_a(what)}")
     if max_bytes is not None and st.st_size > max_bytes:
         raise error(f"{path}: {st.st_size / 2**20:.0f} MB is larger than any {what} "
                     f"({max_bytes / 2**20:.0f} MB at most)")
     if not os.access(path, os.R_OK):
         raise error(f"{path}: cannot read the {what} (permission denied)")
     return path
+
+
+def _a(noun: str) -> str:
+    return ("an " if noun[:1] in "aeiou" else "a ") + noun
 
 
 def read_json(path: str | Path, what: str, error: type[CarbodyError], max_bytes: int = MAX_JSON_BYTES) -> Any:
