@@ -27,14 +27,14 @@ class StageBar:
         self._started = False
         self._bar = tqdm(total=len(self.stages), desc=self.stages[0], unit="stage", file=sys.stderr,
                          disable=bar_disabled(quiet), leave=False,
-                         bar_format="carbody {desc}: stage {n_fmt}/{total_fmt} {bar} {elapsed}")
+                         bar_format="carbody {desc} {bar} {elapsed}")
 
     def start(self, label: str) -> None:
         """Mark the stage running as done and show ``label`` as the one now running."""
         if self._started:
             self._bar.update(1)
         self._started = True
-        self._bar.set_description(label)
+        self._bar.set_description_str(f"{label} (stage {self._bar.n + 1} of {len(self.stages)})")
 
     def close(self) -> None:
         if self._started:
