@@ -78,7 +78,10 @@ def _stop(signum: int, frame) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, or a mistake argparse has said in one line: its exit code
+        return exc.code if isinstance(exc.code, int) else 0
     # Libraries' log warnings (ezdxf cannot write its font cache under a read-only home) are not
     # the user's business: what goes wrong is said in carbody's own one line.
     logging.getLogger().addHandler(logging.NullHandler())
