@@ -120,10 +120,9 @@ def run_template(args) -> list[dict]:
                    shell_valid=bool(shell.get("valid", False)), faces=len(result.body.faces),
                    fallback=None if result.fallback is None else result.fallback["fit"],
                    share_of_fit=None if result.fallback is None else result.fallback["share_of_fit"],
-                   evidence_per_coordinate=result.fit.evidence_per_coordinate, fits_poorly=result.fit.fits_poorly,
-                   misses_marks=result.fit.misses_marks,
-                   rejected=sorted(result.fit.rejected_px),
-                   view_at_search_edge=result.fit.view_at_search_edge,
+                   evidence_per_coordinate=result.fit.diagnostics.evidence_per_coordinate,
+                   fits_poorly=result.fit.diagnostics.fits_poorly, misses_marks=result.fit.diagnostics.misses_marks,
+                   rejected=sorted(result.fit.diagnostics.rejected), solves=result.fit.diagnostics.solves,
                    view_source=result.view_source)
         rows.append(row)
     return rows
@@ -182,7 +181,6 @@ def poor_fits(rows: list[dict]) -> str:
     poor = [r for r in ok if r["fits_poorly"]]
     head = (f"−log evidence per coordinate over the runs: median {np.median(evidence):.1f}, 99th percentile "
             f"{np.percentile(evidence, 99):.1f}, max {evidence.max():.1f}; said to fit poorly: {len(poor)} of {len(ok)}; "
-            f"view at the edge of the azimuth searched: {sum(r['view_at_search_edge'] for r in ok)} of {len(ok)}; "
             f"car missing the marks by over 5 % of their spread: {sum(r['misses_marks'] for r in ok)} of {len(ok)}; "
             f"marks left out as misplaced: {sum(len(r['rejected']) for r in ok)} in {sum(bool(r['rejected']) for r in ok)} runs")
     return "\n".join([head] + [f"- {r['template']} at {r['view']}°: {r['evidence_per_coordinate']:.0f} per coordinate "

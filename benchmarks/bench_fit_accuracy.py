@@ -185,7 +185,7 @@ def twin_slip(kps: dict, rng: np.random.Generator) -> tuple[dict, list[str]]:
 def run_template(args) -> list[dict]:
     t, cases, lambdas, angles, elevation, distance_mm, noise_px, off_centre, outliers, reject, swap = args
     from carbody.errors import FitError
-    from carbody.fit.single_view import fit_wireframe
+    from carbody.fit import fit_wireframe
     from carbody.topology import load_topology
 
     name, loo, truth, wb, idx = left_out(t)
@@ -213,10 +213,10 @@ def run_template(args) -> list[dict]:
             kw = {"prior_weight": lam} if lam is not None else {}
             from carbody.camera import View
 
-            res = fit_wireframe(kps, View(azimuth + offset, given_elevation), loo, image_size=size,
+            res = fit_wireframe(kps, View((azimuth + offset) % 360, given_elevation), loo, image_size=size,
                                 wheelbase_mm=wb if wb_told else None, method=method, refine=refine,
                                 deform=deform and method != "paper", principal_point=principal,
-                                focal_px=focal if known_focal else None, reject_outliers=reject,
+                                focal_px=focal if known_focal else None, robust=reject,
                                 **kw, **kw_camera)
             dt = time.perf_counter() - t0
             estimate = proportions = size_note = None
@@ -224,7 +224,7 @@ def run_template(args) -> list[dict]:
                 # the wheelbase the fit uses when none is given (the mix's own; told one, the
                 # shape prior is sized by it, so this is a fit of its own)
                 try:
-                    alone = fit_wireframe(kps, View(azimuth, given_elevation), loo, image_size=size,
+                    alone = fit_wireframe(kps, View(azimuth % 360, given_elevation), loo, image_size=size,
                                           method=method, refine=False, deform=False, principal_point=principal,
                                           focal_px=focal if known_focal else None, **kw_camera)
                     estimate = 100.0 * (alone.wheelbase_mm / wb - 1.0)
@@ -258,72 +258,69 @@ def run_template(args) -> list[dict]:
                          "wheelbase_estimate_pct": estimate,
                          "wheelbase_by_proportions_pct": proportions, "size_note": size_note,
                          "residual_px": float(res.solution.residual_px.mean()),
-                         "moved": moved, "rejected": sorted(res.rejected_px),
-                         "swapped": sorted(res.swapped_names or ()),
+                         "moved": moved, "rejected": sorted(res.diagnostics.rejected),
+                         "swapped": sorted(res.diagnostics.swapped or ()),
+                         "renamed": res.diagnostics.renamed, "solves": res.diagnostics.solves,
                          # the fit's own estimate of each keypoint's error, against the error
                          "expected_mm": expected, "error_mm": err.tolist(),
                          "seconds": dt})
     return rows
 
 
-def run_other_end(args) -> list[dict]:
-    """Template t's views within ``END_CHECK_DEG`` of the front or rear, each fitted told its
-    true view and told the car's other end (180° − θ): refused or not (a ``SideError`` naming
-    which view), and each fit's −log evidence per coordinate with the check turned off and every
-    mark kept (as the check sees it) — what the check's level (``END_SUSPECT_EVIDENCE``) and margin are set between."""
-    t, angles, elevation, noise_px = args
-    import carbody.fit.single_view as single_view
-    from carbody.camera import View, degrees_from_axis
-    from carbody.errors import FitError, SideError
-    from carbody.fit.refine import view_score
-    from carbody.fit.single_view import fit_wireframe
+#: ``--other-end``: views this near (degrees) the front or rear are told the car's other end.
+OTHER_END_RANGE_DEG = 60.0
 
-    name, loo, truth, wb, _ = left_out(t)
+
+def run_other_end(args) -> list[dict]:
+    """Template t's views within ``OTHER_END_RANGE_DEG`` of the front or rear, each fitted told its
+    true view and told the car's other end (180° − θ): the view the search lands on, and the
+    fit's −log evidence per coordinate there (what ``poor_fit_evidence`` is set against)."""
+    t, angles, elevation, noise_px = args
+    from carbody.camera import View, degrees_from_axis
+    from carbody.errors import FitError
+    from carbody.fit import fit_wireframe
+
+    name, loo, truth, wb, idx = left_out(t)
     rng = np.random.default_rng(2000 + t)
-    check, elsewhere = single_view.END_CHECK_DEG, single_view._check_elsewhere
     rows = []
     for azimuth in angles:
-        if degrees_from_axis(azimuth) > check:
+        if degrees_from_axis(azimuth) > OTHER_END_RANGE_DEG:
             continue
         kps, size, _ = synthetic_view(truth, azimuth, rng, elevation, noise_px=noise_px)
         for told in (azimuth, (180.0 - azimuth) % 360.0):
             row = {"template": name, "azimuth": azimuth, "told": "true view" if told == azimuth else "other end",
-                   "refused_as": None, "failed": None}
-            kw = dict(image_size=size, wheelbase_mm=wb)
+                   "view": None, "failed": None}
+            t0 = time.perf_counter()
             try:
-                # the checks off (this one, and the one all round the car): this view's own evidence
-                single_view.END_CHECK_DEG, single_view._check_elsewhere = -1.0, lambda result, *a: result
-                fit = fit_wireframe(kps, View(told, elevation), loo, reject_outliers=False, **kw)
-                row["evidence_per_coordinate"] = view_score(fit.solution) / (2 * len(fit.slots))
+                fit = fit_wireframe(kps, View(told, elevation), loo, image_size=size, wheelbase_mm=wb)
+                err = np.linalg.norm(fit.wireframe.control_points[idx] - truth[idx] * wb / 1000, axis=1)
+                row.update(view=fit.view.azimuth, evidence_per_coordinate=fit.diagnostics.evidence_per_coordinate,
+                           mean_mm=float(err.mean()), rejected=sorted(fit.diagnostics.rejected))
             except FitError as e:
                 row["failed"] = str(e)
-            finally:
-                single_view.END_CHECK_DEG, single_view._check_elsewhere = check, elsewhere
-            try:
-                fit_wireframe(kps, View(told, elevation), loo, **kw)
-            except SideError as e:
-                row["refused_as"] = e.azimuth
-            except FitError as e:
-                row["failed"] = str(e)
+            row["seconds"] = time.perf_counter() - t0
             rows.append(row)
     return rows
 
 
 def other_end_table(rows: list[dict]) -> str:
-    """``--other-end``: refusals and −log evidence per coordinate, told the true view or the
-    other end."""
-    from carbody.fit.result import END_SUSPECT_EVIDENCE
+    """``--other-end``: where fits told the true view or the other end land, and their −log
+    evidence per coordinate there."""
+    from carbody.policy import FIT_POLICY
+    from carbody.view.labels import angular_difference
 
-    out = [f"| told | fits | refused | of them naming the true view | failed otherwise | −log evidence per "
-           f"coordinate, check off: min / median / max | above {END_SUSPECT_EVIDENCE:g} (checked) |",
-           "|---|---|---|---|---|---|---|"]
+    out = ["| told | fits | lands within 5° of the photo's view | mean 3D error, mm | −log evidence per "
+           f"coordinate there: min / median / max | above {FIT_POLICY.poor_fit_evidence:g} | failed | s/fit |",
+           "|---|---|---|---|---|---|---|---|"]
     for told in ("true view", "other end"):
         rs = [r for r in rows if r["told"] == told]
-        ev = np.array([r["evidence_per_coordinate"] for r in rs if "evidence_per_coordinate" in r])
-        refused = [r for r in rs if r["refused_as"] is not None]
-        right = sum(abs((r["refused_as"] - r["azimuth"] + 180) % 360 - 180) < 1e-6 for r in refused)
-        out.append(f"| {told} | {len(rs)} | {len(refused)} | {right} | {sum(r['failed'] is not None for r in rs)} "
-                   f"| {ev.min():.1f} / {np.median(ev):.1f} / {ev.max():.1f} | {int(np.sum(ev > END_SUSPECT_EVIDENCE))} |")
+        ok = [r for r in rs if r["view"] is not None]
+        landed = [r for r in ok if angular_difference(r["view"], r["azimuth"]) <= 5.0]
+        ev = np.array([r["evidence_per_coordinate"] for r in ok])
+        out.append(f"| {told} | {len(rs)} | {len(landed)} | {np.mean([r['mean_mm'] for r in ok]):.1f} "
+                   f"| {ev.min():.1f} / {np.median(ev):.1f} / {ev.max():.1f} "
+                   f"| {int(np.sum(ev > FIT_POLICY.poor_fit_evidence))} | {len(rs) - len(ok)} "
+                   f"| {np.median([r['seconds'] for r in rs]):.2f} |")
     return "\n".join(out)
 
 
@@ -341,7 +338,7 @@ def run_orthographic_check(args) -> list[dict]:
     or None."""
     t, angles, elevation, noise_px, outliers = args
     from carbody.camera import View
-    from carbody.fit.single_view import fit_wireframe
+    from carbody.fit import fit_wireframe
 
     name, loo, truth, wb, idx = left_out(t)
     rng = np.random.default_rng(3000 + t)
@@ -360,8 +357,8 @@ def run_orthographic_check(args) -> list[dict]:
                                      - truth[idx] * wb / 1000, axis=1)
                 row[f"{camera}_mean_mm"] = float(err.mean())
                 if camera == "orthographic":
-                    row["closer_camera"] = res.closer_camera
-                    row["check"] = res.orthographic_check
+                    row["closer_camera"] = res.diagnostics.closer_camera if res.diagnostics.camera_closer else None
+                    row["check"] = res.diagnostics.closer_camera
             rows.append(row)
     return rows
 
@@ -401,16 +398,13 @@ def orthographic_check_table(rows: list[dict]) -> str:
 
 
 def run_view_off(args) -> list[dict]:
-    """Template t at each angle, fitted (wheelbase not told, view refined, as ``carbody
-    reconstruct`` does) told its view off by each of ``offsets`` degrees: refused or not (a
-    ``SideError`` naming a view: the car's other side, its other end, or a view elsewhere that
-    fits soundly), then followed as reconstruct follows its classifier's view — refitted at the
-    view named, at most ``MAX_VIEW_TURNS`` times — to the view it lands on and its 3D error."""
+    """Template t at each angle, fitted (wheelbase not told, the view searched, as ``carbody
+    reconstruct`` does) told its view off by each of ``offsets`` degrees: the view it lands on,
+    its 3D error, whether it says it fits poorly, and what the fit cost."""
     t, angles, elevation, noise_px, offsets = args
     from carbody.camera import View
-    from carbody.errors import FitError, SideError
-    from carbody.fit.single_view import fit_wireframe
-    from carbody.pipeline import MAX_VIEW_TURNS
+    from carbody.errors import FitError
+    from carbody.fit import fit_wireframe
 
     name, loo, truth, wb, idx = left_out(t)
     rng = np.random.default_rng(4000 + t)
@@ -419,49 +413,41 @@ def run_view_off(args) -> list[dict]:
         kps, size, _ = synthetic_view(truth, azimuth, rng, elevation, noise_px=noise_px)
         for off in offsets:
             told = (azimuth + off) % 360.0
-            row = {"template": name, "azimuth": azimuth, "offset": off, "told": told, "refused_as": [],
+            row = {"template": name, "azimuth": azimuth, "offset": off, "told": told,
                    "failed": None, "view": None, "mean_mm": None, "fits_poorly": None}
             t0 = time.perf_counter()
-            for _ in range(MAX_VIEW_TURNS + 1):
-                try:
-                    res = fit_wireframe(kps, View(told, elevation), loo, image_size=size)
-                except SideError as e:
-                    row["refused_as"].append(e.azimuth)
-                    told = e.azimuth
-                    continue
-                except FitError as e:
-                    row["failed"] = str(e)
-                    break
+            try:
+                res = fit_wireframe(kps, View(told, elevation), loo, image_size=size)
                 err = np.linalg.norm(res.wireframe.control_points[idx] * wb / res.wheelbase_mm
                                      - truth[idx] * wb / 1000, axis=1)
-                row.update(view=res.view.azimuth, mean_mm=float(err.mean()), fits_poorly=res.fits_poorly)
-                break
+                row.update(view=res.view.azimuth, mean_mm=float(err.mean()),
+                           fits_poorly=res.diagnostics.fits_poorly, solves=res.diagnostics.solves)
+            except FitError as e:
+                row["failed"] = str(e)
             row["seconds"] = time.perf_counter() - t0
             rows.append(row)
     return rows
 
 
 def view_off_table(rows: list[dict]) -> str:
-    """``--view-off``: per offset, how many fits were refused at first, how many of those named
-    the true view, and where following the refusals (as reconstruct does) lands."""
+    """``--view-off``: per offset, where the fits land."""
     from carbody.view.labels import angular_difference
 
-    out = ["| told off by | fits | refused | first refusal naming the true view (±5°) | followed: lands within "
-           "5° of the truth | mean 3D error there, mm | lands elsewhere: said to fit poorly / quiet | "
-           "refused to the end or failed | s/fit median (max) |",
-           "|---|---|---|---|---|---|---|---|---|"]
+    out = ["| told off by | fits | lands within 5° of the truth | mean 3D error there, mm | lands elsewhere: "
+           "said to fit poorly / quiet | failed | s/fit median (max) | solves median (max) |",
+           "|---|---|---|---|---|---|---|---|"]
     for off in dict.fromkeys(r["offset"] for r in rows):
         rs = [r for r in rows if r["offset"] == off]
-        refused = [r for r in rs if r["refused_as"]]
-        named = sum(angular_difference(r["refused_as"][0], r["azimuth"]) <= 5.0 for r in refused)
         landed = [r for r in rs if r["view"] is not None]
         right = [r for r in landed if angular_difference(r["view"], r["azimuth"]) <= 5.0]
         wrong = [r for r in landed if angular_difference(r["view"], r["azimuth"]) > 5.0]
         poor = sum(bool(r["fits_poorly"]) for r in wrong)
         sec = [r["seconds"] for r in rs]
-        out.append(f"| {off:g}° | {len(rs)} | {len(refused)} | {named} | {len(right)} | "
+        solves = [r["solves"] for r in landed]
+        out.append(f"| {off:g}° | {len(rs)} | {len(right)} | "
                    f"{np.mean([r['mean_mm'] for r in right]) if right else float('nan'):.1f} | "
-                   f"{poor} / {len(wrong) - poor} | {len(rs) - len(landed)} | {np.median(sec):.2f} ({max(sec):.1f}) |")
+                   f"{poor} / {len(wrong) - poor} | {len(rs) - len(landed)} | {np.median(sec):.2f} ({max(sec):.1f}) "
+                   f"| {np.median(solves):.0f} ({max(solves)}) |")
     return "\n".join(out)
 
 
@@ -727,22 +713,21 @@ def main(argv=None) -> int:
                     help=f"one random mark of each view also clicked {TWIN_SLIP_PX:g} px off it under its "
                          "right twin's name (one point marked under both names)")
     ap.add_argument("--no-reject", action="store_true",
-                    help="keep every mark (fit_wireframe's reject_outliers=False)")
+                    help="keep every mark (FitOptions.robust=False)")
     ap.add_argument("--deform-length", metavar="LX,LY,LZ",
                     help="correlation lengths across, along the car and up (normalised units) of "
                          "the local part of the deformation after the fit (default LOCAL_LENGTH in "
                          "every direction); e.g. 800,120,120 correlates it across the car like the "
                          "joint field")
     ap.add_argument("--other-end", action="store_true",
-                    help="only the other-end check: each view within END_CHECK_DEG of the front or "
+                    help="only the other end: each view within OTHER_END_RANGE_DEG of the front or "
                          "rear fitted told its true view and told the car's other end (180° − θ)")
     ap.add_argument("--orthographic-check", action="store_true",
                     help="only the check that a photo fitted as orthographic was taken from close by: "
                          "each car photographed from afar and from 20, 10, 6 and 4 m, fitted as "
                          "orthographic (asked to check) and finding the distance")
     ap.add_argument("--view-off", metavar="DEG,...",
-                    help="only views told this far off (e.g. 0,45,90,135): refusals naming a view, "
-                         "and where following them lands")
+                    help="only views told this far off (e.g. 0,45,90,135): where the search lands")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 

@@ -1,12 +1,13 @@
 """Speed of the single-view solve (issue 3): one solve at 3528 models, scaling to 35k, 350k and
-1M models, the full fit with view refinement, and scipy's nnls / lsq_linear on the same problems.
+1M models, the full fit with the view search, scipy's nnls / lsq_linear on the same problems, and
+the fit's cost on bad input against a clean fit (issue 23: bounded cost), side by side.
 
 Larger libraries are the same 14 templates expanded with finer factors (the library's own
 ``expand``), keeping only the 35 keypoint rows of each model (float32): 1M models x 105 rows is
 0.4 GB where the full S would be 6.7 GB. A "solve" is everything after the keypoints are read:
 projection rows for the view, the active-set NNLS over the whole library, scale and offset.
 
-Run: python benchmarks/bench_fit_speed.py [--max-models 1000000]
+Run: python benchmarks/bench_fit_speed.py [--max-models 1000000] [--bounded-only]
 """
 from __future__ import annotations
 
@@ -52,10 +53,59 @@ def keypoints_of_expanded_library(n_per_axis: tuple[int, int, int]) -> np.ndarra
     return np.concatenate(parts, axis=2)
 
 
+#: The bounded-cost cases: what each does to the shipped example's marks (a photo from 7 m at 30°)
+#: and the view told, as ``carbody reconstruct`` fits (the camera's distance found).
+BAD_INPUTS = ("clean, told 30°", "one left/right pair's names exchanged", "told 120° (90° off)",
+              "told 210° (180° off)", "no view told", "two marks 40 px off")
+
+
+def bounded_cost(repeat: int = 3) -> str:
+    """The example's fit on each of ``BAD_INPUTS``, the cases interleaved ``repeat`` times (this
+    machine is shared: side by side in one run), median seconds and the ratio to the clean fit."""
+    import json
+    from pathlib import Path
+
+    from carbody.fit import fit_wireframe
+
+    example = json.loads((Path(__file__).resolve().parents[1] / "examples" / "car_keypoints.json").read_text())
+    marks, size = example["keypoints"], tuple(example["image_size"])
+    pair = ("front_top_corner", "front_top_corner_right")
+    moved = dict(marks)
+    for name, shift in (("nose_centre", (0.0, 40.0)), ("b_pillar_top", (-28.0, 28.0))):
+        moved[name] = [marks[name][0] + shift[0], marks[name][1] + shift[1]]
+    inputs = {BAD_INPUTS[0]: (marks, 30), BAD_INPUTS[1]: ({**marks, pair[0]: marks[pair[1]], pair[1]: marks[pair[0]]}, 30),
+              BAD_INPUTS[2]: (marks, 120), BAD_INPUTS[3]: (marks, 210), BAD_INPUTS[4]: (marks, None),
+              BAD_INPUTS[5]: (moved, 30)}
+    fit_wireframe(marks, 30, image_size=size, camera_distance_mm="auto")  # prepares the library once
+    times: dict[str, list[float]] = {k: [] for k in inputs}
+    fits = {}
+    for _ in range(repeat):
+        for label, (m, view) in inputs.items():
+            t0 = time.perf_counter()
+            fits[label] = fit_wireframe(m, view, image_size=size, camera_distance_mm="auto")
+            times[label].append(time.perf_counter() - t0)
+    clean = float(np.median(times[BAD_INPUTS[0]]))
+    out = ["| input | s (median of %d) | × the clean fit | solves | view found | marks left out / renamed |" % repeat,
+           "|---|---|---|---|---|---|"]
+    for label, fit in fits.items():
+        t = float(np.median(times[label]))
+        d = fit.diagnostics
+        changed = ", ".join(sorted(d.rejected)) or "–"
+        if d.renamed:
+            changed += " / " + ", ".join(f"{a}→{b}" for a, b in d.renamed.items())
+        out.append(f"| {label} | {t:.3f} | {t / clean:.2f} | {d.solves} | {fit.view.azimuth:.1f}° | {changed} |")
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-models", type=int, default=1_000_000)
+    ap.add_argument("--bounded-only", action="store_true", help="only the bounded-cost table")
     args = ap.parse_args(argv)
+    if args.bounded_only:
+        print("## Bounded cost: the example's fit on bad input, against the clean fit (2-core machine)\n")
+        print(bounded_cost())
+        return 0
 
     from scipy.optimize import lsq_linear, nnls
 
@@ -110,7 +160,9 @@ def main(argv=None) -> int:
           f"({prepared(lib, 'gauss', 2650.0, field=False).basis.shape[1]} sized in mm, wheelbase told) "
           f"and {built.basis.shape[1] - library_part} of the joint field")
 
-    print("\n## Full fit with view refinement at 3528 models (given view 30°; median of 5)\n")
+    print("\n## Bounded cost: the example's fit on bad input, against the clean fit\n")
+    print(bounded_cost())
+    print(f"\n## Full fit with the view search at {lib.S.shape[1]} models (given view 30°; median of 5)\n")
     print("| method | camera | s | refined azimuth |")
     print("|---|---|---|---|")
     for method, wheelbase in (("gauss", None), ("mixture", None), ("paper", None), ("mixture", 2650.0)):

@@ -21,6 +21,7 @@ from carbody.errors import CarbodyError
 #: Modules that register subcommands, in the order they appear in ``--help``.
 COMMAND_MODULES = (
     "carbody.reconstruct_cli",
+    "carbody.batch_cli",
     "carbody.demo",
     "carbody.freecad_cli",
     "carbody.view.cli",

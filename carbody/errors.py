@@ -58,3 +58,9 @@ class RegionLayoutError(SurfaceError):
 
 class OutputError(CarbodyError):
     """An output file or folder cannot be written (no such folder, no permission, wrong type)."""
+
+
+class BatchError(CarbodyError):
+    """A batch cannot run: its manifest is unreadable or mis-structured, two rows write one
+    folder, another batch holds the output folder, or the Dask cluster cannot be reached or
+    does not share the output folder."""

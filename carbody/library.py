@@ -16,6 +16,8 @@ the expansion factors, and rebuilt when either changes.
 """
 from __future__ import annotations
 
+import functools
+
 import hashlib
 import os
 from dataclasses import dataclass, field
@@ -207,6 +209,13 @@ def build_library(folder: str | Path | None = None, expansion: Expansion = Expan
         template_wheelbase_mm=wheelbases,
         template_classes=[row["class"] for row, _ in templates],
     )
+
+
+@functools.cache
+def default_library() -> "Library":
+    """The shipped library, loaded once per process (the fit keeps its shape models per library
+    object, so one object for the whole process spares rebuilding them)."""
+    return load_library()
 
 
 def load_library(folder: str | Path | None = None, expansion: Expansion = Expansion(),

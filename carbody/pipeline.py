@@ -11,7 +11,6 @@ The CLI ``carbody reconstruct`` is a thin layer over :func:`reconstruct` and
 """
 from __future__ import annotations
 
-import functools
 import json
 import time
 from dataclasses import dataclass, field
@@ -219,6 +218,27 @@ class Reconstruction:
 OUTPUT_FILES = ("wireframe.step", "body.step", "car.step", "overlay.png", "body.png", "report.json", "summary.txt")
 
 
+def prepare_output_dir(out_dir: str | Path) -> Path:
+    """Create ``out_dir`` (and its parents) if needed and make sure it can be written, before
+    any long work (a batch's folder, whose photos each get a folder of their own).
+
+    Raises:
+        OutputError: the folder cannot be created or written.
+    """
+    import tempfile
+
+    from carbody.outputs import STAGING_PREFIX
+
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=STAGING_PREFIX, suffix=".probe"):
+            pass
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot write the output folder ({exc.strerror or exc})") from None
+    return out
+
+
 def check_output_dir(out_dir: str | Path, inputs: dict[str, str | Path | None] | None = None) -> Path:
     """Check, before any long work, that the folder ``out_dir`` and each of
     :data:`OUTPUT_FILES` in it can be written, and that none of them is one of ``inputs``
@@ -266,14 +286,6 @@ def write_assembly(path: Path, result: Reconstruction) -> Path:
     assy.name = result.name
     _, doc = toCAF(assy, True)  # cadquery's own STEP export writes the same document, to a path
     return write_step_document(path, doc, OutputError)
-
-
-@functools.cache
-def default_library():
-    """The shipped library, loaded once per process (the fit keeps its shape model per library)."""
-    from carbody.library import load_library
-
-    return load_library()
 
 
 def _read_inputs(image, keypoints):
@@ -353,6 +365,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     """
     from carbody.camera import View, read_view
     from carbody.fit import FitOptions, ViewPrior, fit_wireframe
+    from carbody.library import default_library
     from carbody.fit.focal import focal_length_px
     from carbody.surface import build_body
 

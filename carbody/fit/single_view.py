@@ -53,7 +53,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             azimuth in degrees or a name such as ``"front 30"``), or a :class:`ViewPrior` (the
             classifier's probabilities). With ``refine`` (default) it is a prior on the search
             over every view; without, the view kept.
-        library: the model library (default :func:`carbody.library.load_library`).
+        library: the model library (default the shipped one, :func:`carbody.library.default_library`).
         image_size: (width, height) px; keypoints off the image are refused.
         wheelbase_mm: the real wheelbase, if known (the Gaussian-prior methods then also know
             the car's width and height in mm); default the fitted mix of the templates' own.
@@ -71,9 +71,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
     check_library(library)
     prior = _view_prior(view, options)
     if library is None:
-        from carbody.library import load_library
+        from carbody.library import default_library
 
-        library = load_library()
+        library = default_library()
     slots, uv = check_keypoints(keypoints, image_size, load_topology())
     plan = CameraPlan.of(options.distance, options.principal_point, image_size, options.focal_px)
     told_mm = plan.distance if isinstance(plan.distance, float) else None

@@ -19,6 +19,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-background", action="store_true", help="plain white backgrounds (ablation)")
     p.add_argument("--no-colour", action="store_true", help="one paint, glass and light (ablation)")
     p.add_argument("--no-elevation", action="store_true", help="fixed 10 deg elevation, centred, orthographic (ablation)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="render on a running Dask cluster (tcp://host:8786) whose workers see OUT_DIR at the "
+                        "same path; the images are the same bit for bit as in one process")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="render on a local Dask cluster of N worker processes (default: in this process)")
     p.set_defaults(func=_render_dataset)
 
     p = sub.add_parser("train-view", help="train the view classifier (MobileNetV2) on a rendered data set",
@@ -53,9 +58,15 @@ def _render_dataset(args) -> int:
 
     vary = Variation(background=not (args.plain or args.no_background), colour=not (args.plain or args.no_colour),
                      elevation=not (args.plain or args.no_elevation))
-    manifest = render_dataset(args.out_dir, count=args.count or DEFAULT_COUNT, seed=args.seed,
-                              bodies_per_template=args.bodies_per_template, vary=vary,
-                              progress=not args.quiet)
+    kw = dict(count=args.count or DEFAULT_COUNT, seed=args.seed, bodies_per_template=args.bodies_per_template,
+              vary=vary, progress=not args.quiet)
+    if args.scheduler is None and args.workers is None:
+        manifest = render_dataset(args.out_dir, **kw)
+    else:
+        from carbody.cluster import connect
+
+        with connect(args.scheduler, args.workers, warm=("kernel",)) as client:
+            manifest = render_dataset(args.out_dir, **kw, client=client)
     print(manifest)
     return 0
 

@@ -355,10 +355,15 @@ def split_templates(names: list[str], seed: int, fraction: float = VALIDATION_FR
     return {names[i] for i in rng.choice(len(names), size=n, replace=False)}
 
 
+#: Images one task renders (a Scene built per such chunk, here and on a cluster alike, so the
+#: images do not depend on how the work is spread).
+IMAGES_PER_TASK = 64
+
+
 def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 0,
                    bodies_per_template: int = 4, vary: Variation = Variation(),
                    templates: list[str] | None = None, progress: bool = True,
-                   surface_body: Callable | None = None) -> Path:
+                   surface_body: Callable | None = None, client=None) -> Path:
     """Render the data set into ``out_dir`` (see module docstring); returns the manifest path.
 
     Args:
@@ -367,7 +372,13 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
         bodies_per_template: the template itself plus this many − 1 library expansions.
         vary: what varies between images.
         templates: restrict to these template names (default all).
-        surface_body: ``Wireframe -> Body`` (default :func:`carbody.surface.build_body`).
+        surface_body: ``Wireframe -> Body`` (default :func:`carbody.surface.build_body`; on a
+            cluster it must pickle: a module-level function).
+        client: a ``distributed.Client`` (:func:`carbody.cluster.connect`) to surface the bodies
+            and render their images on, every worker writing into ``out_dir`` (which they must
+            see); None: in this process. The files are the same bit for bit either way, for any
+            number of workers: each image's randomness follows from (seed, body, image) alone,
+            and each chunk of :data:`IMAGES_PER_TASK` gets a scene of its own.
 
     Raises:
         ViewError: bad count, unknown template, an output folder that already holds a data set.
@@ -376,7 +387,6 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
 
     from carbody.library import load_library
     from carbody.progress import bar_disabled
-    from carbody.render import Scene, save_png
     from carbody.templates import load_templates
 
     if count < N_CLASSES:
@@ -399,45 +409,13 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
     # Spread images: body b gets count // n (+1 for the first count % n), classes cycled.
     per_body = [count // len(bodies) + (i < count % len(bodies)) for i in range(len(bodies))]
     (out / "images").mkdir(parents=True, exist_ok=True)
-    manifest_rows = []
+    skipped: list[dict] = []
     bar = tqdm(total=count, desc="render-dataset", unit="img", disable=bar_disabled(not progress))
-    n_done, carry, skipped = 0, 0, []
-    for b, (spec, n_img) in enumerate(zip(bodies, per_body)):
-        bar.set_postfix_str(spec.body_id)
-        n_img += carry
-        try:
-            meshes = body_meshes(spec, surface_body)
-        except Exception as exc:  # noqa: BLE001  a body surfacing fails on: its images go to the next body
-            # Any failure (a refused region or a bug in a surfacing stage) skips one body and is
-            # recorded in dataset.json; one bad expansion must not stop a 3000-image render.
-            if b == len(bodies) - 1:
-                raise ViewError(f"the last body {spec.body_id} cannot be surfaced: {exc}") from None
-            skipped.append({"body": spec.body_id, "reason": f"{type(exc).__name__}: {exc}"})
-            carry = n_img
-            continue
-        carry = 0
-        scene = Scene(meshes, size=(IMAGE_SIZE, IMAGE_SIZE), antialias=2)
-        car_length = float(np.ptp(spec.control_points_mm[:, 1]))
-        brng = np.random.default_rng([seed, 3, b])
-        classes = (np.arange(n_img) + brng.integers(N_CLASSES)) % N_CLASSES
-        brng.shuffle(classes)
-        for i, k in enumerate(classes):
-            rng = np.random.default_rng([seed, 4, b, i])
-            shot, look = sample_shot(rng, int(k), vary)
-            img = shoot(scene, shot, look, car_length, rng, vary)
-            rel = Path("images") / f"{int(CLASS_ANGLES_DEG[k]):03d}" / f"{spec.body_id}_{i:04d}.png"
-            (out / rel).parent.mkdir(exist_ok=True)
-            save_png(img, out / rel)
-            manifest_rows.append({
-                "file": rel.as_posix(), "class_index": int(k), "class_deg": int(CLASS_ANGLES_DEG[k]),
-                "theta_deg": round(shot.theta_deg, 3), "elevation_deg": round(shot.elevation_deg, 3),
-                "roll_deg": round(shot.roll_deg, 3), "mirrored": int(shot.mirrored),
-                "distance_lengths": round(shot.distance_lengths, 3), "fill": round(shot.fill, 3),
-                "background": shot.background, "body": spec.body_id, "template": spec.template,
-                "model_index": spec.model_index,
-                "split": "val" if spec.template in val_templates else "train"})
-            n_done += 1
-            bar.update(1)
+    if client is None:
+        manifest_rows = _render_here(out, bodies, per_body, seed, vary, val_templates, surface_body, skipped, bar)
+    else:
+        manifest_rows = _render_on(client, out, bodies, per_body, seed, vary, val_templates, surface_body,
+                                   skipped, bar)
     bar.close()
     tmp = out / ".manifest.csv.tmp"
     with open(tmp, "w", newline="") as fh:
@@ -445,12 +423,138 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
         writer.writeheader()
         writer.writerows(manifest_rows)
     (out / "dataset.json").write_text(json.dumps({
-        "count": n_done, "seed": seed, "image_size": IMAGE_SIZE, "classes_deg": CLASS_ANGLES_DEG.tolist(),
+        "count": len(manifest_rows), "seed": seed, "image_size": IMAGE_SIZE, "classes_deg": CLASS_ANGLES_DEG.tolist(),
         "bodies": [b.body_id for b in bodies if b.body_id not in {k["body"] for k in skipped}],
         "skipped_bodies": skipped, "validation_templates": sorted(val_templates),
         "variation": asdict(vary), "bodies_per_template": bodies_per_template}, indent=1))
     tmp.replace(out / "manifest.csv")
     return out / "manifest.csv"
+
+
+def surfaced_meshes(spec: BodySpec, surface_body: Callable | None = None) -> tuple[list | None, str | None]:
+    """(:func:`body_meshes`, None), or (None, why) when the body cannot be surfaced.
+
+    Any failure (a refused region or a bug in a surfacing stage) only skips the body, recorded in
+    dataset.json: one bad expansion must not stop a 3000-image render.
+    """
+    try:
+        return body_meshes(spec, surface_body), None
+    except Exception as exc:  # noqa: BLE001  see above
+        return None, f"{type(exc).__name__}: {exc}"
+
+
+def _failure(surfaced: tuple[list | None, str | None]) -> str | None:
+    return surfaced[1]
+
+
+def _render_surfaced(out, spec, b, surfaced, images, seed, vary, split) -> list[dict]:
+    return render_images(out, spec, b, surfaced[0], images, seed, vary, split)
+
+
+def image_plan(bodies: list[BodySpec], per_body: list[int], failure: Callable[[int], str | None],
+               skipped: list[dict]):
+    """(body index, number of images) for each body that surfaces, in order: a body that does not
+    (``failure(b)`` says why; asked in order, as the work goes) is recorded in ``skipped`` and
+    its images go to the next body.
+
+    Raises:
+        ViewError: the last body cannot be surfaced.
+    """
+    carry = 0
+    for b, (spec, n_img) in enumerate(zip(bodies, per_body)):
+        n_img += carry
+        reason = failure(b)
+        if reason is not None:
+            if b == len(bodies) - 1:
+                raise ViewError(f"the last body {spec.body_id} cannot be surfaced: {reason}")
+            skipped.append({"body": spec.body_id, "reason": reason})
+            carry = n_img
+            continue
+        carry = 0
+        yield b, n_img
+
+
+def image_chunks(b: int, n_img: int, seed: int) -> list[list[tuple[int, int]]]:
+    """Body ``b``'s images as chunks of :data:`IMAGES_PER_TASK` (image index, class index)."""
+    brng = np.random.default_rng([seed, 3, b])
+    classes = (np.arange(n_img) + brng.integers(N_CLASSES)) % N_CLASSES
+    brng.shuffle(classes)
+    images = [(i, int(k)) for i, k in enumerate(classes)]
+    return [images[s:s + IMAGES_PER_TASK] for s in range(0, len(images), IMAGES_PER_TASK)]
+
+
+def render_images(out: str | Path, spec: BodySpec, b: int, meshes, images: list[tuple[int, int]], seed: int,
+                  vary: Variation, split: str) -> list[dict]:
+    """Render body ``b``'s ``images`` ((image index, class index)) into ``out/images/<θ>/`` on a
+    scene of their own; returns their manifest rows."""
+    from carbody.render import Scene, save_png
+
+    out = Path(out)
+    scene = Scene(meshes, size=(IMAGE_SIZE, IMAGE_SIZE), antialias=2)
+    car_length = float(np.ptp(spec.control_points_mm[:, 1]))
+    rows = []
+    for i, k in images:
+        rng = np.random.default_rng([seed, 4, b, i])
+        shot, look = sample_shot(rng, k, vary)
+        img = shoot(scene, shot, look, car_length, rng, vary)
+        rel = Path("images") / f"{int(CLASS_ANGLES_DEG[k]):03d}" / f"{spec.body_id}_{i:04d}.png"
+        (out / rel).parent.mkdir(exist_ok=True)
+        save_png(img, out / rel)
+        rows.append({
+            "file": rel.as_posix(), "class_index": int(k), "class_deg": int(CLASS_ANGLES_DEG[k]),
+            "theta_deg": round(shot.theta_deg, 3), "elevation_deg": round(shot.elevation_deg, 3),
+            "roll_deg": round(shot.roll_deg, 3), "mirrored": int(shot.mirrored),
+            "distance_lengths": round(shot.distance_lengths, 3), "fill": round(shot.fill, 3),
+            "background": shot.background, "body": spec.body_id, "template": spec.template,
+            "model_index": spec.model_index, "split": split})
+    return rows
+
+
+def _render_here(out, bodies, per_body, seed, vary, val_templates, surface_body, skipped, bar) -> list[dict]:
+    """Body after body in this process: each surfaced, then its images rendered."""
+    meshes: dict[int, list] = {}
+
+    def failure(b: int) -> str | None:
+        bar.set_postfix_str(bodies[b].body_id)
+        meshes[b], reason = surfaced_meshes(bodies[b], surface_body)
+        return reason
+
+    rows = []
+    for b, n_img in image_plan(bodies, per_body, failure, skipped):
+        split = "val" if bodies[b].template in val_templates else "train"
+        for chunk in image_chunks(b, n_img, seed):
+            rows += render_images(out, bodies[b], b, meshes[b], chunk, seed, vary, split)
+            bar.update(len(chunk))
+        del meshes[b]
+    return rows
+
+
+def _render_on(client, out, bodies, per_body, seed, vary, val_templates, surface_body, skipped, bar) -> list[dict]:
+    """On a Dask cluster: every body surfaced at once (its meshes stay on the worker that made
+    them), then every chunk of images rendered where its body's meshes are; rows in the order
+    this process would write them."""
+    from distributed import as_completed
+
+    from carbody.cluster import check_shared_folder
+
+    check_shared_folder(client, out)
+    bar.set_postfix_str(f"surfacing {len(bodies)} bodies")
+    surfaced = [client.submit(surfaced_meshes, spec, surface_body, pure=False) for spec in bodies]
+    failures = client.gather([client.submit(_failure, s, pure=False) for s in surfaced])
+    tasks = {}
+    for b, n_img in image_plan(bodies, per_body, failures.__getitem__, skipped):
+        split = "val" if bodies[b].template in val_templates else "train"
+        for chunk in image_chunks(b, n_img, seed):
+            future = client.submit(_render_surfaced, str(out), bodies[b], b, surfaced[b], chunk, seed, vary, split,
+                                   pure=False)
+            tasks[future] = (b, chunk[0][0])
+    bar.set_postfix_str("")
+    chunks = {}
+    for future in as_completed(tasks):
+        chunks[tasks[future]] = future.result()
+        bar.update(len(chunks[tasks[future]]))
+    del surfaced
+    return [row for key in sorted(chunks) for row in chunks[key]]
 
 
 def read_manifest(dataset_dir: str | Path) -> list[dict]:
