@@ -311,3 +311,16 @@ def test_fit_wireframe_raises_a_carbody_error_for_each_bad_argument(arguments):
 
     with pytest.raises(CarbodyError):
         fit_wireframe(MARKS["keypoints"], **{"view": 30, "image_size": (1000, 640), **arguments})
+
+
+def test_a_template_manifest_with_a_byte_order_mark_is_read_and_a_misshapen_one_refused(capsys, template_copy):
+    from carbody.templates import load_manifest
+
+    manifest = template_copy / "manifest.json"
+    rows = load_manifest(template_copy)
+    manifest.write_bytes(b"\xef\xbb\xbf" + manifest.read_bytes())
+    assert load_manifest(template_copy) == rows
+    manifest.write_text(json.dumps({"cars": rows}))
+    assert "not a template manifest" in refused(capsys, "templates", "list", "--dir", template_copy)
+    manifest.write_text(json.dumps([{**rows[0], "file": ["a.step"]}]))
+    assert "not a template manifest" in refused(capsys, "library", "--dir", template_copy, "--no-cache")

@@ -33,14 +33,18 @@ def slug(name: str) -> str:
 
 def load_manifest(folder: str | Path | None = None) -> list[dict]:
     """The manifest rows: name, class, published dimensions (mm), file, source."""
+    from carbody.inputs import read_json
+
     folder = Path(folder) if folder else templates_dir()
     path = folder / MANIFEST
-    try:
-        rows = json.loads(path.read_text())
-    except OSError:
-        raise TemplateError(f"{path}: no template manifest (run `carbody templates build`)") from None
-    except json.JSONDecodeError as exc:
-        raise TemplateError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
+    if not path.exists():
+        raise TemplateError(f"{path}: no template manifest (run `carbody templates build`)")
+    rows = read_json(path, "template manifest", TemplateError)
+    fields = ("name", "class", "file")
+    if not isinstance(rows, list) or not all(isinstance(r, dict) and all(isinstance(r.get(f), str) for f in fields)
+                                             for r in rows):
+        raise TemplateError(f"{path}: not a template manifest (a list of cars, each with its "
+                            f"{', '.join(fields)} as text)")
     return rows
 
 
