@@ -17,6 +17,7 @@ import signal
 import sys
 
 from carbody.errors import CarbodyError
+from carbody.signals import Stopped, handlers
 
 #: Modules that register subcommands, in the order they appear in ``--help``.
 COMMAND_MODULES = (
@@ -64,19 +65,6 @@ def _add_quiet(parser: argparse.ArgumentParser) -> None:
                             help="no progress display (it shows only on a terminal anyway)")
 
 
-class Stopped(BaseException):
-    """The process was told to stop (SIGTERM, SIGHUP): raised in the main thread like
-    KeyboardInterrupt, so every ``finally`` runs and a half-done run's staging folder goes."""
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = signum
-
-
-def _stop(signum: int, frame) -> None:
-    raise Stopped(signum)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
@@ -86,12 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     # Libraries' log warnings (ezdxf cannot write its font cache under a read-only home) are not
     # the user's business: what goes wrong is said in carbody's own one line.
     logging.getLogger().addHandler(logging.NullHandler())
-    previous = {signum: signal.signal(signum, _stop) for signum in (signal.SIGTERM, signal.SIGHUP)}
-    try:
+    with handlers():  # (a caller in the same process, a test, gets its own back)
         return _run(args)
-    finally:  # a caller in the same process (a test) gets its own handlers back
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
 
 
 def _run(args: argparse.Namespace) -> int:

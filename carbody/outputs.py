@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from carbody.errors import CarbodyError, OutputError
+from carbody.signals import held
 
 #: Suffixes of the pictures the commands write (VTK, matplotlib and OpenCV all write PNG).
 PICTURE = (".png",)
@@ -81,8 +82,8 @@ def check_output_file(path: str | Path, suffixes: tuple[str, ...] | None = None)
         raise OutputError(f"{path}: {_KINDS.get(suffixes, 'a file')} is written here as {' / '.join(suffixes)}, "
                           f"not {path.suffix or 'a file without an ending'}")
     try:
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=STAGING_PREFIX, suffix=".probe"):
-            pass
+        with held(), tempfile.NamedTemporaryFile(dir=folder, prefix=STAGING_PREFIX, suffix=".probe"):
+            pass  # (made and removed whole: a stop signal waits until it is gone)
     except OSError as exc:
         raise OutputError(f"{path}: cannot write in {folder} ({exc.strerror or exc})") from None
     return path
@@ -140,31 +141,28 @@ def output_folder(path: str | Path) -> Iterator[Path]:
         if os.path.isdir(folder):
             break
         missing.append(folder)
-    made = []
+    made: list[Path] = []
+    ready = False
     try:
         for folder in reversed(missing):  # outermost first
-            try:
-                os.mkdir(folder)
-            except FileExistsError:
-                if not os.path.isdir(folder):
-                    raise OutputError(f"{path}: cannot create the output folder ({folder} is a file)") from None
-                continue  # made meanwhile by another run: theirs
-            made.append(folder)
-    except (OSError, OutputError) as exc:
-        for folder in reversed(made):
-            with contextlib.suppress(OSError):
-                os.rmdir(folder)
-        if isinstance(exc, OutputError):
-            raise
-        raise OutputError(f"{path}: cannot create the output folder ({exc.strerror or exc})") from None
-    try:
+            with held():  # made and noted whole
+                try:
+                    os.mkdir(folder)
+                except FileExistsError:
+                    if not os.path.isdir(folder):
+                        raise OutputError(f"{path}: cannot create the output folder ({folder} is a file)") from None
+                    continue  # made meanwhile by another run: theirs
+                made.append(folder)
+        ready = True
         yield path
-    except BaseException:
+    except BaseException as exc:
         for folder in reversed(made):  # innermost first; stops at the first another run has used
             try:
                 os.rmdir(folder)
             except OSError:
                 break
+        if isinstance(exc, OSError) and not ready:
+            raise OutputError(f"{path}: cannot create the output folder ({exc.strerror or exc})") from None
         raise
 
 
@@ -188,7 +186,8 @@ def staged(targets: Iterable[str | Path]) -> Iterator[Callable[[str | Path], Pat
             folder = os.path.dirname(os.path.abspath(target))
             if folder not in stages:
                 try:
-                    stages[folder] = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=folder))
+                    with held():  # made and noted whole, so that it is removed
+                        stages[folder] = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=folder))
                 except OSError as exc:
                     raise OutputError(f"{target}: cannot write in {folder} ({exc.strerror or exc})") from None
         where = {target: stages[os.path.dirname(os.path.abspath(target))] / target.name for target in targets}
@@ -225,7 +224,13 @@ def _unstaged(text: str, stages: dict[str, Path], targets: list[Path]) -> str:
 
 def _move_into_place(moves: list[tuple[Path, Path]]) -> None:
     """Rename each staged file onto its target (same folder, so no copy and no new space), the
-    previous file kept aside in the staging folder until all are in; undone on any failure."""
+    previous file kept aside in the staging folder until all are in; undone on any failure. A
+    stop signal waits until they are all in."""
+    with held():
+        _move_all(moves)
+
+
+def _move_all(moves: list[tuple[Path, Path]]) -> None:
     done: list[tuple[Path, Path | None]] = []
     try:
         for i, (target, new) in enumerate(moves):

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from carbody.errors import CarbodyError, TemplateError
+from carbody.signals import held
 from carbody.tolerances import MAX_COORDINATE_MM, STEP_ROUND_MM
 
 
@@ -67,19 +68,23 @@ def atomic_write(path: str | Path, write) -> Path:
     path = Path(path)
     if not path.parent.is_dir():
         raise TemplateError(f"{path}: folder {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent, prefix=f".{path.stem}.")
-    os.close(fd)
+    tmp = None
     try:
+        with held():  # made and noted whole, so that it is removed
+            fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent, prefix=f".{path.stem}.")
+            os.close(fd)
         write(tmp)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual mode
         os.replace(tmp, path)
     except OSError as exc:  # (a full disk): said of the file asked for, not of the temporary one
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise OSError(exc.errno, exc.strerror, str(path)) from None
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise
     return path
 
