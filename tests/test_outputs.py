@@ -227,14 +227,19 @@ def _caught(pid: int, signum: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc")
-@pytest.mark.parametrize("signum, when", [(signal.SIGTERM, "staging"), (signal.SIGHUP, "staging"),
-                                          (signal.SIGINT, "started")])
-def test_a_signal_stops_the_run_in_one_line_and_leaves_nothing(tmp_path, signum, when):
+@pytest.mark.parametrize("signum, command, when", [
+    (signal.SIGTERM, "reconstruct", "staging"), (signal.SIGHUP, "surface", "staging"),
+    (signal.SIGINT, "reconstruct", "started")])
+def test_a_signal_stops_the_run_in_one_line_and_leaves_nothing(tmp_path, signum, command, when):
     """SIGTERM and SIGHUP while the files are being staged: the staging folder goes, and with it
     the folder the run made; SIGINT (Ctrl-C) is one line, not a traceback."""
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "carbody", "reconstruct", str(PHOTO), "-k", str(KEYPOINTS),
-                             "--view", "30", "-o", str(out)], cwd=REPO, stdout=subprocess.PIPE,
+    if command == "reconstruct":
+        argv = ["reconstruct", PHOTO, "-k", KEYPOINTS, "--view", "30", "-o", out]
+    else:
+        out.mkdir()
+        argv = ["surface", REPO / "templates_step" / "volvo_v60.step", "-o", out / "b.step", "--png", out / "b.png"]
+    proc = subprocess.Popen([sys.executable, "-m", "carbody", *map(str, argv)], cwd=REPO, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env={**os.environ},
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # a worker may ignore it
     deadline = time.time() + 240
@@ -243,10 +248,10 @@ def test_a_signal_stops_the_run_in_one_line_and_leaves_nothing(tmp_path, signum,
             break
         if when == "staging" and out.is_dir() and any(p.is_dir() for p in out.glob(".carbody-*")):
             break
-        time.sleep(0.02)
+        time.sleep(0.01)
     assert proc.poll() is None, "the run ended before the signal"
     proc.send_signal(signum)
     _, err = proc.communicate(timeout=240)
     lines = err.strip().splitlines()
-    assert proc.returncode == 128 + signum and lines == [f"carbody reconstruct: stopped by {signal.Signals(signum).name}"]
-    assert not out.exists()
+    assert proc.returncode == 128 + signum and lines == [f"carbody {command}: stopped by {signal.Signals(signum).name}"]
+    assert not out.exists() if command == "reconstruct" else not any(out.iterdir())
