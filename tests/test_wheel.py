@@ -1,6 +1,7 @@
 """It installs like a Python package: the wheel built from the repository, installed into a fresh
 virtual environment, reconstructs the example from a folder outside the checkout, with the
-templates, the view classifier's weights and the demo's files as package data, writes nothing
+templates, the view classifier's weights and the demo's files (``carbody demo`` runs the same
+on them) as package data, writes nothing
 into its own install folder, and needs no home folder it can write to."""
 from __future__ import annotations
 
@@ -47,8 +48,6 @@ def test_the_wheel_installs_and_reconstructs_the_example_outside_the_checkout(tm
     work, home = tmp_path / "elsewhere", tmp_path / "home"
     work.mkdir()
     home.write_text("")  # a home nothing can be written under (for root too): no caches, and no word of it
-    for name in ("car.png", "car_keypoints.json"):
-        shutil.copy(REPO / "examples" / name, work / name)
     env = {k: v for k, v in os.environ.items()
            if k not in ("PYTHONPATH", "CARBODY_TEMPLATES_DIR", "CARBODY_CACHE_DIR", "XDG_CACHE_HOME")}
     env.update(HOME=str(home), OMP_NUM_THREADS="1")
@@ -58,11 +57,14 @@ def test_the_wheel_installs_and_reconstructs_the_example_outside_the_checkout(tm
     assert Path(where[0]).is_relative_to(installed) and where[1] == "True"
     before = files_under(installed)
 
+    example = installed / "carbody" / "shipped" / "examples"  # the demo's files, as the wheel ships them
+    for name in ("car.png", "car_keypoints.json"):
+        shutil.copy(example / name, work / name)
     carbody = venv / "bin" / "carbody"
-    proc = run(carbody, "reconstruct", "car.png", "-k", "car_keypoints.json", "-o", "out", cwd=work, env=env)
+    proc = run(carbody, "reconstruct", "car.png", "-k", "car_keypoints.json", "--truth", example / "car_truth.step",
+               "-o", "out", cwd=work, env=env)
     assert "classifier said" in proc.stdout and proc.stderr == "", proc.stderr  # the shipped weights
+    assert "3D keypoint error vs truth" in proc.stdout
     assert {p.name for p in (work / "out").iterdir()} == {"wireframe.step", "body.step", "car.step", "overlay.png",
                                                           "body.png", "report.json", "summary.txt"}
-    proc = run(carbody, "demo", "--out", "demo", cwd=work, env=env)  # the shipped example and its truth
-    assert "3D keypoint error vs truth" in proc.stdout
     assert files_under(installed) == before  # nothing written into site-packages
