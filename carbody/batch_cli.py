@@ -37,7 +37,8 @@ def run_batch_command(args: argparse.Namespace, out=sys.stdout) -> int:
     from carbody.batch import SUMMARY_FILE, run_batch
 
     try:
-        summary = run_batch(args.manifest, args.out, args.scheduler, args.workers, force=args.force)
+        summary = run_batch(args.manifest, args.out, args.scheduler, args.workers, force=args.force,
+                            progress=not args.quiet)
     except KeyboardInterrupt:
         # batch.json already says which photos were done; their folders are whole
         print(f"carbody batch: stopped; {args.out / SUMMARY_FILE} lists what was done; run the same "

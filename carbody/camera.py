@@ -14,6 +14,7 @@ x; :func:`view_rotation` gives that R with rows (d, r, w) and :func:`eq1_angles`
 """
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,12 +50,15 @@ class View:
     aim: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        for name in ("azimuth", "elevation", "roll"):
-            if not np.isfinite(getattr(self, name)):
-                raise AngleError(f"view {name} is not a finite number")
+        for name in ("azimuth", "elevation", "roll", "distance"):
+            value = getattr(self, name)
+            if name == "distance" and value is None:
+                continue
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+                raise AngleError(f"view {name} {value!r} is not a finite number")
         if abs(self.elevation) > MAX_ABS_ELEVATION_DEG:
             raise AngleError(f"view elevation {self.elevation:g}° is outside ±{MAX_ABS_ELEVATION_DEG:g}°")
-        if self.distance is not None and not (np.isfinite(self.distance) and self.distance > 0):
+        if self.distance is not None and not self.distance > 0:
             raise AngleError(f"camera distance {self.distance!r} is not a positive number")
 
     def scaled(self, factor: float) -> "View":
@@ -215,13 +219,47 @@ def degrees_from_axis(azimuth: float) -> float:
 
 
 def read_view(text: str | float) -> float:
-    """A view as a person types it: an azimuth in degrees (0–360, else :class:`AngleError`) or a
-    name (:func:`parse_view`: ``"front 30"``, ``"rear 30"``, ``"side"``, ``"front 30 right"``)."""
+    """A view as a person types it: an azimuth in degrees (0–360) or a name (:func:`parse_view`:
+    ``"front 30"``, ``"rear 30"``, ``"side"``, ``"front 30 right"``, its angle 0–180°).
+
+    Raises:
+        AngleError: not a number or a name, or an angle out of its range (``"front 999"``).
+    """
+    if isinstance(text, (bool, np.bool_)) or not isinstance(text, (str, numbers.Real)):
+        raise AngleError(f"view {text!r} is neither an angle in degrees nor a name such as 'front 30'")
     try:
         value = float(text)
-    except (TypeError, ValueError):
+    except ValueError:
+        words = _view_words(text)
+        if len(words) == 1 and words[0] not in _VIEW_BASES:  # "45°": a number with its unit
+            return check_azimuth(_view_number(words[0], text))
+        if len(words) == 2:
+            offset = _view_number(words[1], text)
+            if not 0.0 <= offset <= 180.0:
+                raise AngleError(f"view {text!r}: the angle after {words[0]!r} lies outside 0–180°") from None
         return parse_view(text)
     return check_azimuth(value)
+
+
+#: The azimuth each view name starts from, degrees.
+_VIEW_BASES = {"front": 0.0, "side": 90.0, "rear": 180.0, "back": 180.0}
+
+
+def _view_words(view: str) -> list[str]:
+    """The words of a view's name that say the angle ("right", "left", "view" and units dropped)."""
+    text = str(view).strip().lower().replace("°", " ").replace("deg", " ")
+    return [x for x in text.split() if x not in ("right", "left", "view")]
+
+
+def _view_number(word: str, view) -> float:
+    try:
+        value = float(word)
+    except ValueError:
+        raise AngleError(f"cannot read view {view!r} (try 'front 30°', 'side', 'rear 30°' "
+                         f"or an angle in degrees)") from None
+    if not np.isfinite(value):
+        raise AngleError(f"view {view!r} is not a finite angle")
+    return value
 
 
 def parse_view(view: str | float) -> float:
@@ -234,14 +272,12 @@ def parse_view(view: str | float) -> float:
     """
     if isinstance(view, (int, float, np.integer, np.floating)):
         return float(view) % 360.0
-    text = str(view).strip().lower().replace("°", " ").replace("deg", " ")
-    words = text.split()
-    right = "right" in words
-    words = [x for x in words if x not in ("right", "left", "view")]
+    right = "right" in str(view).lower().split()
+    words = _view_words(view)
     try:
-        if len(words) == 1 and words[0] not in ("front", "rear", "side", "back"):
+        if len(words) == 1 and words[0] not in _VIEW_BASES:
             return float(words[0]) % 360.0
-        base = {"front": 0.0, "side": 90.0, "rear": 180.0, "back": 180.0}[words[0]]
+        base = _VIEW_BASES[words[0]]
         offset = float(words[1]) if len(words) > 1 else 0.0
         if len(words) > 2:
             raise ValueError

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+from carbody.shipped import EXAMPLES
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -24,5 +24,6 @@ def _demo(args) -> int:
 
     argv = ["reconstruct", str(EXAMPLES / "car.png"), "--keypoints", str(EXAMPLES / "car_keypoints.json"),
             "--truth", str(EXAMPLES / "car_truth.step"), "--name", "carbody example crossover",
-            "--out", str(args.out)] + ([] if args.view is None else ["--view", str(args.view)])
+            "--out", str(args.out)] + ([] if args.view is None else ["--view", str(args.view)]) \
+        + (["--quiet"] if args.quiet else [])
     return run_reconstruct(build_parser().parse_args(argv))  # reconstruct's own defaults

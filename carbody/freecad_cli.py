@@ -17,9 +17,8 @@ import tempfile
 from pathlib import Path
 
 from carbody.errors import CarbodyError
-from carbody.outputs import check_output_file
-
-WORKBENCH = Path(__file__).resolve().parents[1] / "workbench"
+from carbody.outputs import FREECAD, check_not_inputs, check_output_file, staged
+from carbody.shipped import WORKBENCH
 
 _SCRIPT = """
 import json, os, sys
@@ -55,16 +54,27 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 
 def run_freecad(args: argparse.Namespace) -> int:
+    from carbody.inputs import read_json
+    from carbody.progress import progress
+
+    inputs = {f"the folder's {name}": args.folder / name for name in ("wireframe.step", "body.step", "report.json")}
+    check_not_inputs({"--output": args.output}, inputs)
+    check_output_file(args.output, FREECAD)
     exe = args.freecadcmd if os.path.isabs(args.freecadcmd) else shutil.which(args.freecadcmd)
     if not exe or not os.path.isfile(exe):
         raise FreeCADError(f"FreeCAD is not installed: {args.freecadcmd!r} not found "
                            "(Debian: apt-get install freecad-python3)")
-    check_output_file(args.output)
-    for name in ("wireframe.step", "body.step", "report.json"):
-        if not (args.folder / name).is_file():
-            raise FreeCADError(f"{args.folder}: no {name} (not a `carbody reconstruct` folder)")
-    with tempfile.TemporaryDirectory(dir=args.output.parent, prefix=".carbody-fc-") as tmp:
-        target = Path(tmp) / "doc.FCStd"
+    for path in inputs.values():
+        if not path.is_file():
+            raise FreeCADError(f"{args.folder}: no {path.name} (not a `carbody reconstruct` folder)")
+    report = read_json(args.folder / "report.json", "reconstruction report", FreeCADError)
+    if not isinstance(report, dict) or not isinstance(report.get("image"), (str, type(None))):
+        raise FreeCADError(f"{args.folder / 'report.json'}: not a `carbody reconstruct` report")
+    check_not_inputs({"--output": args.output}, {"the photo": report.get("image")})
+    with progress(("FreeCAD",), args.quiet) as bar, staged([args.output]) as at, \
+            tempfile.TemporaryDirectory(prefix="carbody-fc-") as tmp:
+        bar.start("FreeCAD")
+        target = at(args.output)
         script = Path(tmp) / "build.py"
         script.write_text(_SCRIPT.format(workbench=str(WORKBENCH), out=str(args.folder.resolve()),
                                          target=str(target)))
@@ -77,7 +87,6 @@ def run_freecad(args: argparse.Namespace) -> int:
         if not result or not target.is_file():
             lines = [line for line in (proc.stdout + proc.stderr).splitlines() if "carbody" in line.lower() or "Error" in line]
             raise FreeCADError(f"FreeCAD could not build the document: {lines[-1] if lines else 'no result'}")
-        os.replace(target, args.output)
     counts = json.loads(result[0][len("CARBODY "):])
     print(f"wrote {args.output}: {counts['curves']} curve objects, {counts['body_objects']} body objects")
     return 0

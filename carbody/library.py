@@ -104,6 +104,16 @@ class Library:
         )
 
 
+def check_library(library) -> None:
+    """Refuse anything but a :class:`Library` (or None: the shipped one) where one is asked for.
+
+    Raises:
+        LibraryError: naming what was given.
+    """
+    if library is not None and not isinstance(library, Library):
+        raise LibraryError(f"library must be a carbody.library.Library, got a {type(library).__name__}")
+
+
 def normalise(points_mm: np.ndarray, topology: Topology | None = None) -> np.ndarray:
     """Move, level and scale a wireframe so its wheel centres are (0, 0) and (1000, 0).
 
@@ -161,10 +171,16 @@ def expand(models: np.ndarray, expansion: Expansion = Expansion(), topology: Top
     return np.array(out), np.array(index), np.array(factors)
 
 
-def cache_dir() -> Path:
-    """Where S is cached: ``$CARBODY_CACHE_DIR`` or ``~/.cache/carbody``."""
+def cache_dir() -> Path | None:
+    """Where S is cached: ``$CARBODY_CACHE_DIR`` or ``~/.cache/carbody``; None when there is no
+    home folder to put it in (the library is then built in memory each run)."""
     env = os.environ.get("CARBODY_CACHE_DIR")
-    return Path(env) if env else Path.home() / ".cache" / "carbody"
+    if env:
+        return Path(env)
+    try:
+        return Path.home() / ".cache" / "carbody"
+    except RuntimeError:  # no $HOME and no user entry to find one
+        return None
 
 
 def _cache_key(folder: Path, rows: list[dict], expansion: Expansion) -> str:
@@ -218,21 +234,49 @@ def load_library(folder: str | Path | None = None, expansion: Expansion = Expans
     if not use_cache:
         return build_library(folder, expansion)
     key = _cache_key(folder, load_manifest(folder), expansion)
-    path = cache_dir() / f"library-{key}.npz"
-    if path.is_file():
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                return Library(S=z["S"], template_names=[str(n) for n in z["template_names"]],
-                               template_index=z["template_index"], factors=z["factors"],
-                               template_wheelbase_mm=z["template_wheelbase_mm"],
-                               template_classes=[str(c) for c in z["template_classes"]])
-        except (OSError, KeyError, ValueError):
-            path.unlink(missing_ok=True)  # a damaged cache is rebuilt
+    cache = cache_dir()
+    path = None if cache is None else cache / f"library-{key}.npz"
+    cached = _read_cache(path) if path is not None else None
+    if cached is not None:
+        return cached
     lib = build_library(folder, expansion)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-    np.savez(tmp, S=lib.S, template_names=np.array(lib.template_names), template_index=lib.template_index,
-             factors=lib.factors, template_wheelbase_mm=lib.template_wheelbase_mm,
-             template_classes=np.array(lib.template_classes))
-    os.replace(tmp, path)
+    if path is not None:
+        _write_cache(path, lib)
     return lib
+
+
+def _read_cache(path: Path) -> Library | None:
+    """The library cached at ``path``, or None when there is none or it is damaged (truncated,
+    not an archive, arrays missing or of the wrong shape): it is then rebuilt."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            lib = Library(S=z["S"], template_names=[str(n) for n in z["template_names"]],
+                          template_index=z["template_index"], factors=z["factors"],
+                          template_wheelbase_mm=z["template_wheelbase_mm"],
+                          template_classes=[str(c) for c in z["template_classes"]])
+    except Exception:  # none yet, or a damaged file (which fails in numpy's or zipfile's own ways)
+        return None
+    n, t = lib.S.shape[1], len(lib.template_names)
+    sound = (lib.S.shape[0] == 3 * load_topology().n_points and lib.template_index.shape == (n,)
+             and lib.factors.shape == (n, 4) and lib.template_wheelbase_mm.shape == (t,)
+             and len(lib.template_classes) == t and n > 0 and np.isfinite(lib.S).all()
+             and lib.template_index.min() >= 0 and lib.template_index.max() < t)
+    return lib if sound else None
+
+
+def _write_cache(path: Path, lib: Library) -> None:
+    """Cache ``lib`` at ``path`` (written whole, then renamed into place, so a reader never sees
+    half of it); a cache that cannot be written (a read-only or full disk, no home folder) is
+    skipped: the next run builds the library again."""
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(tmp, S=lib.S, template_names=np.array(lib.template_names), template_index=lib.template_index,
+                 factors=lib.factors, template_wheelbase_mm=lib.template_wheelbase_mm,
+                 template_classes=np.array(lib.template_classes))
+        os.replace(tmp, path)
+    except OSError:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass

@@ -27,7 +27,7 @@ def _library(args) -> int:
         "models_per_template": Expansion().models_per_template,
         "shape": list(lib.S.shape),
         "template_names": lib.template_names,
-        "cache_dir": str(cache_dir()),
+        "cache_dir": None if cache_dir() is None else str(cache_dir()),
         "load_seconds": round(seconds, 4),
     }
     if args.json:

@@ -11,6 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
+from carbody.errors import CarbodyError
+
+
+class PartsError(CarbodyError):
+    """A STEP file whose named parts cannot be listed."""
+
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("parts", help="list the named curves and faces of a carbody STEP file")
@@ -60,18 +66,26 @@ def body_faces(body) -> list[dict]:
 
 def list_parts(path: Path) -> dict:
     """{product, curves: [{name, centre, poles}], faces: [{name, region, centre, area, colour}]} of a
-    STEP file."""
+    STEP file carbody writes: a wireframe, a body, or the assembly of both (``car.step``).
+
+    Raises:
+        PartsError: the file is unreadable, or names no curve and no face.
+    """
     from carbody.occ.step_body import read_body_step
     from carbody.occ.step_curves import read_curves_step
 
-    body = read_body_step(path)
-    if body.faces:
-        faces = [face_entry(name, face, colour) for name, colour, face in body.faces]
-        return {"product": body.product, "curves": [], "faces": faces}
-    product, curves = read_curves_step(path)
-    return {"product": product, "curves": [{"name": c.name, "centre": curve_centre(c.poles), "poles": c.poles.tolist()}
-                                           for c in curves],
-            "faces": []}
+    try:
+        body = read_body_step(path)
+        product, curves = read_curves_step(path)
+    except CarbodyError as exc:
+        raise PartsError(str(exc)) from None
+    faces = [face_entry(name, face, colour) for name, colour, face in body.faces]
+    named = [c for c in curves if c.name and len(c.poles)]
+    if not named and not faces:
+        raise PartsError(f"{path}: names no curve and no face (not a STEP file carbody wrote, or its names "
+                         "were lost on saving)")
+    return {"product": body.product or product, "faces": faces,
+            "curves": [{"name": c.name, "centre": curve_centre(c.poles), "poles": c.poles.tolist()} for c in named]}
 
 
 def _parts(args) -> int:

@@ -12,9 +12,6 @@ The CLI ``carbody reconstruct`` is a thin layer over :func:`reconstruct` and
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -174,79 +171,121 @@ class Reconstruction:
     def write(self, out_dir: str | Path, truth=None) -> dict[str, Path]:
         """Write every output into ``out_dir`` (created if needed); all or nothing.
 
-        Files: ``wireframe.step`` (both halves, named B-spline edges), ``body.step`` (one shell,
-        faces named and coloured by region), ``car.step`` (one AP214 assembly with the parts
-        ``wireframe`` and ``body``), ``overlay.png`` (photo, annotated red and reprojected green
-        keypoints, projected wireframe), ``body.png`` (shaded body, three views),
-        ``report.json`` and ``summary.txt``.
+        Files (:data:`OUTPUT_FILES`): ``wireframe.step`` (both halves, named B-spline edges),
+        ``body.step`` (one shell, faces named and coloured by region), ``car.step`` (one AP214
+        assembly with the parts ``wireframe`` and ``body``), ``overlay.png`` (photo, annotated red
+        and reprojected green keypoints, projected wireframe), ``body.png`` (shaded body, three
+        views), ``report.json`` and ``summary.txt``. They are written into a staging folder in
+        ``out_dir`` and moved into place together (:func:`carbody.outputs.staged`): on a full
+        disk or any failure the folder's earlier files stay as they were, and a folder this call
+        created is removed again if nothing else is in it.
 
         Raises:
-            OutputError: the folder cannot be created or written.
+            OutputError: the folder or one of the files in it cannot be written, or one of them
+                is the photo or the keypoint file.
         """
-        out = prepare_output_dir(out_dir)
-        staging = Path(tempfile.mkdtemp(prefix=".carbody-", dir=out))
-        try:
-            paths = self._write_all(staging, truth)
-            final = {}
-            for key, path in paths.items():
-                final[key] = out / path.name
-                os.replace(path, final[key])
-            return final
-        finally:
-            shutil.rmtree(staging, ignore_errors=True)
+        from carbody.outputs import output_folder, staged
 
-    def _write_all(self, folder: Path, truth) -> dict[str, Path]:
+        with output_folder(out_dir) as out:
+            check_output_dir(out, inputs={"the photo": self.image_path})
+            with staged([out / name for name in OUTPUT_FILES]) as at:
+                self._write_all(lambda name: at(out / name), truth)
+        keys = ("wireframe", "body", "assembly", "overlay", "render", "report", "summary")
+        return {key: out / name for key, name in zip(keys, OUTPUT_FILES)}
+
+    def _write_all(self, at: Callable[[str], Path], truth) -> None:
+        """Write :data:`OUTPUT_FILES`, each where ``at(its name)`` says."""
         from carbody.fit.overlay import draw_overlay, write_image
         from carbody.render import render_views
         from carbody.surface.body import write_body
         from carbody.wireframe import write_wireframe
 
         start = time.perf_counter()
-        paths = {
-            "wireframe": write_wireframe(folder / "wireframe.step", self.wireframe, both_halves=True),
-            "body": write_body(folder / "body.step", self.body),
-            "assembly": write_assembly(folder / "car.step", self),
-            # the overlay is drawn with OpenCV, which works in BGR
-            "overlay": write_image(folder / "overlay.png", draw_overlay(self.image[..., ::-1].copy(), self.fit)),
-        }
-        render_views(self.body, folder / "body.png", size=(480, 340))
-        paths["render"] = folder / "body.png"
+        write_wireframe(at("wireframe.step"), self.wireframe, both_halves=True)
+        write_body(at("body.step"), self.body)
+        write_assembly(at("car.step"), self)
+        # the overlay is drawn with OpenCV, which works in BGR
+        write_image(at("overlay.png"), draw_overlay(self.image[..., ::-1].copy(), self.fit))
+        render_views(self.body, at("body.png"), size=(480, 340))
         self.timings_s["write"] = time.perf_counter() - start
         report = self.report(truth)
-        report["files"] = sorted(p.name for p in paths.values()) + ["report.json", "summary.txt"]
-        (folder / "report.json").write_text(json.dumps(report, indent=1))
-        (folder / "summary.txt").write_text(self.summary(report))
-        paths["report"] = folder / "report.json"
-        paths["summary"] = folder / "summary.txt"
-        return paths
+        report["files"] = sorted(OUTPUT_FILES)
+        at("report.json").write_text(json.dumps(report, indent=1))
+        at("summary.txt").write_text(self.summary(report))
+
+
+#: The files :meth:`Reconstruction.write` puts into its folder.
+OUTPUT_FILES = ("wireframe.step", "body.step", "car.step", "overlay.png", "body.png", "report.json", "summary.txt")
 
 
 def prepare_output_dir(out_dir: str | Path) -> Path:
-    """Create ``out_dir`` if needed and make sure it can be written (before any long work)."""
+    """Create ``out_dir`` (and its parents) if needed and make sure it can be written, before
+    any long work (a batch's folder, whose photos each get a folder of their own).
+
+    Raises:
+        OutputError: the folder cannot be created or written.
+    """
+    import tempfile
+
+    from carbody.outputs import STAGING_PREFIX
+
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        probe = tempfile.NamedTemporaryFile(dir=out, prefix=".carbody-probe-")
-        probe.close()
+        with tempfile.NamedTemporaryFile(dir=out, prefix=STAGING_PREFIX, suffix=".probe"):
+            pass
     except OSError as exc:
         raise OutputError(f"{out}: cannot write the output folder ({exc.strerror or exc})") from None
     return out
 
 
-def write_assembly(path: Path, result: Reconstruction) -> Path:
-    """One AP214 file holding the wireframe and the body as named parts of an assembly."""
-    import cadquery as cq
+def check_output_dir(out_dir: str | Path, inputs: dict[str, str | Path | None] | None = None) -> Path:
+    """Check, before any long work, that the folder ``out_dir`` and each of
+    :data:`OUTPUT_FILES` in it can be written, and that none of them is one of ``inputs``
+    ({what: path}: the photo, the keypoint file, the ground truth).
 
-    from carbody.occ.step_curves import atomic_write
+    Raises:
+        OutputError: naming the folder or the file.
+    """
+    from carbody.outputs import check_not_inputs, check_output_file
+
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise OutputError(f"{out}: the output folder does not exist" if not out.exists()
+                          else f"{out}: not a folder")
+    targets = {f"the output {name}": out / name for name in OUTPUT_FILES}
+    for path in targets.values():
+        check_output_file(path)
+    check_not_inputs(targets, inputs or {})
+    return out
+
+
+def write_assembly(path: Path, result: Reconstruction) -> Path:
+    """One AP214 file holding the wireframe and the body as named parts of an assembly: every
+    curve and face named as in wireframe.step and body.step (``carbody parts`` lists them)."""
+    import cadquery as cq
+    from cadquery.occ_impl.assembly import toCAF
+
+    from carbody.occ.shapes import sub_shapes
+    from carbody.occ.step_curves import write_step_document
     from carbody.surface.body import face_names, region_colour
 
-    assy = cq.Assembly(name=result.name)
-    assy.add(result.wireframe_cadquery(), name="wireframe", color=cq.Color(0.1, 0.2, 0.6))
+    # cadquery wants every name in an assembly unique, its own among them: the root gets the
+    # car's name once the parts are in, so a car called "body" or "wireframe" keeps it.
+    assy = cq.Assembly(name=f"{result.name} assembly")
+    curves = result.wireframe.named_curves(both_halves=True)
+    wire_shape = result.wireframe_shape()
+    assy.add(cq.Shape.cast(wire_shape), name="wireframe", color=cq.Color(0.1, 0.2, 0.6))
+    wire_part = assy.children[-1]
+    for (name, _), edge in zip(curves, sub_shapes(wire_shape, "edge")):
+        wire_part.addSubshape(cq.Edge(edge), name=name)
     assy.add(result.body_cadquery(), name="body", color=cq.Color(0.7, 0.7, 0.72))
     body_part = assy.children[-1]
     for name, patch, (_, face) in zip(face_names(result.body), result.body.patches, result.body.faces):
         body_part.addSubshape(cq.Face(face), name=name, color=cq.Color(*region_colour(patch.region)))
-    return atomic_write(path, lambda tmp: assy.export(tmp, "STEP"))
+    assy.name = result.name
+    _, doc = toCAF(assy, True)  # cadquery's own STEP export writes the same document, to a path
+    return write_step_document(path, doc, OutputError)
 
 
 def _read_inputs(image, keypoints):
@@ -268,6 +307,20 @@ def _read_inputs(image, keypoints):
     h, w = rgb.shape[:2]
     check_image_size(ann, (w, h))
     return rgb, image_path, ann
+
+
+def _check_arguments(wheelbase_mm, name, library, reject_outliers) -> None:
+    """Refuse, before any work, the arguments of :func:`reconstruct` its stages would only meet
+    later (the view, the camera and the fit options are checked where they are read, also first)."""
+    from carbody.fit.options import check_wheelbase
+    from carbody.library import check_library
+
+    check_wheelbase(wheelbase_mm)
+    check_library(library)
+    if name is not None and not isinstance(name, str):
+        raise CarbodyError(f"the car's name must be a string, got {name!r}")
+    if not isinstance(reject_outliers, (bool, np.bool_)):
+        raise CarbodyError(f"reject_outliers must be True or False, got {reject_outliers!r}")
 
 
 def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm: float | None = None, *,
@@ -319,10 +372,12 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     timings: dict[str, float] = {}
     rgb, image_path, ann = _read_inputs(image, keypoints)
     h, w = rgb.shape[:2]
+    _check_arguments(wheelbase_mm, name, library, reject_outliers)
     name = name or (image_path.stem if image_path else "car")
     options = FitOptions(camera_distance_mm=camera_distance_mm, principal_point=principal_point,
                          robust=reject_outliers, check_orthographic=True, view_prior_weight=view_prior_weight)
     prior = None if view is None else View(read_view(view), elevation_deg)
+    focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
 
     def stage(label: str):
         if on_stage:
@@ -341,7 +396,6 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     timings["view"] = time.perf_counter() - start
 
     start = stage("fit")
-    focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
     options = options.with_changes(focal_px=focal)
 
     def fit_with(points: dict, **stiffer):

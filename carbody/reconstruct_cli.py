@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 from pathlib import Path
 
@@ -40,65 +39,44 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_reconstruct)
 
 
-def load_truth(spec: str):
-    """A ground-truth wireframe from a STEP file or a template name."""
-    from carbody.templates import load_template
-    from carbody.wireframe import read_wireframe
-
-    return read_wireframe(spec) if Path(spec).suffix.lower() in (".step", ".stp") else load_template(spec)
-
-
 def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
     from carbody.camera import read_view
-    from carbody.fit.cli import parse_distance
-    from carbody.pipeline import prepare_output_dir
-
-    from carbody.fit.cli import library_without
+    from carbody.fit.cli import library_without, parse_distance
+    from carbody.outputs import output_folder
+    from carbody.pipeline import check_output_dir
 
     distance = parse_distance(args.distance)
     view = None if args.view is None else read_view(args.view)
     library = library_without(args.exclude_template) if args.exclude_template else None
-    created = not Path(args.out).exists()
-    prepare_output_dir(args.out)  # fail before the work, not after
-    try:
+    # The folder is made now, so that it can be checked before the work; a run that fails
+    # removes it again if it is still empty (never the files another run has put there since).
+    with output_folder(args.out):
+        check_output_dir(args.out, inputs={"the photo": args.image, "the keypoint file": args.keypoints,
+                                           "the ground truth": args.truth})
         return _reconstruct_into(args, view, distance, library, out)
-    except BaseException:
-        if created:  # a folder made for outputs that never came is not left behind
-            shutil.rmtree(args.out, ignore_errors=True)
-        raise
 
 
 def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) -> int:
-    from tqdm import tqdm
-
+    from carbody.fit.cli import load_truth
     from carbody.pipeline import STAGES, reconstruct
+    from carbody.progress import progress
 
     truth = load_truth(args.truth) if args.truth else None
-    # The bar is for a person at a terminal: none in a log or a pipe (tqdm's ``disable=None``).
-    with tqdm(total=len(STAGES) + 1, desc="carbody", unit="stage", file=sys.stderr, disable=None,
-              bar_format="{desc}: {n_fmt}/{total_fmt} {bar} {elapsed}") as bar:
-        def on_stage(label: str) -> None:
-            if bar.n or label != STAGES[0]:
-                bar.update(1)
-            bar.set_description(label)
-            if args.progress:
-                say_stage(label)
 
-        def say_stage(label: str) -> None:
+    def on_stage(label: str) -> None:
+        bar.start(label)
+        if args.progress:  # a line per stage for a program reading stderr (the FreeCAD workbench)
             k = (STAGES + ("write",)).index(label) + 1
             print(f"carbody: stage {label} ({k}/{len(STAGES) + 1})", file=sys.stderr, flush=True)
 
+    with progress((*STAGES, "write"), args.quiet) as bar:
         result = reconstruct(args.image, args.keypoints, view, args.wheelbase, name=args.name,
                              elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
                              principal_point=args.principal_point, focal_35mm=args.focal_35mm,
                              reject_outliers=not args.keep_marks, view_prior_weight=args.view_weight,
                              on_stage=on_stage)
-        bar.update(1)
-        bar.set_description("write")
-        if args.progress:
-            say_stage("write")
+        on_stage("write")
         paths = result.write(args.out, truth)
-        bar.update(1)
     print((args.out / "summary.txt").read_text(), end="", file=out)
     print(f"wrote {', '.join(sorted(p.name for p in paths.values()))} to {args.out.resolve()}", file=out)
     return 0

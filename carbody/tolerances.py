@@ -12,6 +12,10 @@ JUNCTION_TOL_MM = 1e-3
 #: Control points written to STEP are rounded to this (mm), so they survive the text format exactly.
 STEP_ROUND_MM = 1e-6
 
+#: A coordinate read from STEP further than this from the origin (mm; 100 m) is no car's: refused
+#: before its squares overflow in the checks that follow.
+MAX_COORDINATE_MM = 1e5
+
 #: A curve read from STEP whose poles differ from a cubic Bezier by more than this is refused.
 CUBIC_TOL_MM = 1e-6
 

@@ -92,6 +92,20 @@ def test_the_assembly_holds_both_named_parts(written, result):
     assert faces == len(result.body.faces)
 
 
+def test_parts_lists_every_step_file_reconstruct_writes(written, result):
+    """wireframe.step its 125 curves, body.step its faces, car.step both (named as in the two)."""
+    proc = run_cli("parts", str(written[0] / "car.step"), "--json", check=True)
+    assembly = json.loads(proc.stdout)
+    from carbody.parts_cli import list_parts
+
+    wire, body = list_parts(written[0] / "wireframe.step"), list_parts(written[0] / "body.step")
+    assert len(wire["curves"]) == 125 and not wire["faces"]
+    assert len(body["faces"]) == len(result.body.faces) and not body["curves"]
+    assert [c["name"] for c in assembly["curves"]] == [c["name"] for c in wire["curves"]]
+    assert sorted(f["name"] for f in assembly["faces"]) == sorted(f["name"] for f in body["faces"])
+    assert assembly["product"] == result.name
+
+
 def test_results_are_cadquery_and_build123d_shapes(result):
     import build123d as bd
     import cadquery as cq
@@ -167,7 +181,7 @@ def test_an_unwritable_output_folder_is_refused_before_any_work(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     proc, lines = _bad(tmp_path, str(PHOTO), "-k", str(KEYPOINTS), "--view", "30", "-o", str(blocker / "out"))
-    assert proc.returncode == 2 and len(lines) == 1 and "cannot write the output folder" in lines[0]
+    assert proc.returncode == 2 and len(lines) == 1 and "cannot create the output folder" in lines[0] and "is a file" in lines[0]
 
 
 def _other_side(marks: dict) -> dict:

@@ -120,24 +120,23 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     v.set_defaults(func=run_visible)
 
 
-def _truth(spec: str):
+def load_truth(spec: str):
+    """``--truth``: a ground-truth wireframe from a STEP file (``.step``/``.stp``) or a template name."""
     from carbody.templates import load_template
     from carbody.wireframe import read_wireframe
 
-    return read_wireframe(spec) if Path(spec).is_file() else load_template(spec)
+    return read_wireframe(spec) if Path(spec).suffix.lower() in (".step", ".stp") else load_template(spec)
 
 
 def run_photo_plane(args: argparse.Namespace) -> int:
     import json
     import math
 
-    from carbody.errors import FitError, ImageError
+    from carbody.errors import FitError
     from carbody.fit.photo_plane import side_plane
 
     if not (math.isfinite(args.width) and args.width > 0):
         raise FitError(f"--width {args.width:g} mm is not a positive size")
-    if not Path(args.image).is_file():
-        raise ImageError(f"{args.image}: no such image file")
     print(json.dumps(side_plane(args.image, args.width).as_dict()))
     return 0
 
@@ -151,7 +150,9 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.fit.focal import focal_length_px
     from carbody.fit.options import FitOptions
     from carbody.fit.single_view import fit_wireframe
-    from carbody.outputs import JSON, PHOTO, PICTURE, STEP, check_distinct, check_output_file
+    from carbody.outputs import (JSON, PHOTO, PICTURE, STEP, check_distinct, check_not_inputs, check_output_file,
+                                 staged)
+    from carbody.progress import progress
     from carbody.view.labels import angular_difference
     from carbody.view.predict import read_image
     from carbody.wireframe import write_wireframe
@@ -161,52 +162,60 @@ def run_fit(args: argparse.Namespace) -> int:
         raise FitError("--no-refine keeps the view given: give --view")
     view = None if args.view is None else View(read_view(args.view), args.elevation, args.roll)
     distance = parse_distance(args.distance)
-    image = read_image(args.image)[..., ::-1].copy()  # RGB -> BGR: the overlay is drawn with OpenCV
-    ann = read_keypoints(args.keypoints)
-    h, w = image.shape[:2]
-    check_image_size(ann, (w, h))
-    library = library_without(args.exclude_template)
-    truth = _truth(args.truth) if args.truth else None
-    chart = Path(args.report).with_suffix(".errors.png") if args.report and truth is not None else None
-    if truth is not None and not args.report:
-        raise FitError("--truth needs --report: the errors go into the report, and their chart next to it "
-                       "(REPORT.errors.png)")
-    check_output_file(args.output, STEP)
-    if args.overlay:
-        check_output_file(args.overlay, PHOTO)
-    if args.uncertainty:
-        check_output_file(args.uncertainty, PICTURE)
-    if args.report:
-        check_output_file(args.report, JSON)
-    if chart is not None:
-        check_output_file(chart, PICTURE)
-    check_distinct({"--output": args.output, "--overlay": args.overlay, "--uncertainty": args.uncertainty,
-                    "--report": args.report, "the error chart": chart})
-    if args.uncertainty and args.method == "paper":
-        raise FitError("--uncertainty needs a Gaussian-prior method (mixture or gauss): "
-                       "the paper's solve has no posterior")
-    focal, focal_source = focal_length_px(args.image, (w, h), args.focal_35mm)
-    options = FitOptions(method=args.method, refine=not args.no_refine, deform=False if args.no_deform else None,
-                         robust=not args.keep_marks, camera_distance_mm=distance,
-                         principal_point=args.principal_point, focal_px=focal, check_orthographic=True,
-                         view_prior_weight=args.view_weight)
-    result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
-                           options=options, name=args.name or Path(args.image).stem)
-    overlay = draw_overlay(image, result) if args.overlay else None
-    # (the photo plane reads the photo again: only for a report that is written)
-    report = build_report(result, truth, image=args.image if args.report else None)
-
-    write_wireframe(args.output, result.wireframe, both_halves=True)
-    if overlay is not None:
-        write_image(args.overlay, overlay)
-    if args.uncertainty:
-        result.draw_expected_errors(args.uncertainty)
-    if args.report:
-        write_json(args.report, report)
+    with progress(("read", "fit", "write"), args.quiet) as bar:
+        bar.start("read")
+        image = read_image(args.image)[..., ::-1].copy()  # RGB -> BGR: the overlay is drawn with OpenCV
+        ann = read_keypoints(args.keypoints)
+        h, w = image.shape[:2]
+        check_image_size(ann, (w, h))
+        library = library_without(args.exclude_template)
+        truth = load_truth(args.truth) if args.truth else None
+        chart = Path(args.report).with_suffix(".errors.png") if args.report and truth is not None else None
+        if truth is not None and not args.report:
+            raise FitError("--truth needs --report: the errors go into the report, and their chart next to it "
+                           "(REPORT.errors.png)")
+        check_output_file(args.output, STEP)
+        if args.overlay:
+            check_output_file(args.overlay, PHOTO)
+        if args.uncertainty:
+            check_output_file(args.uncertainty, PICTURE)
+        if args.report:
+            check_output_file(args.report, JSON)
         if chart is not None:
-            draw_error_chart(report["error_mm_at_truth_wheelbase"], chart,
-                             annotated={s.name.removesuffix("_right") for s in result.slots},
-                             expected_mm=report.get("expected_error_mm"))
+            check_output_file(chart, PICTURE)
+        outputs = {"--output": args.output, "--overlay": args.overlay, "--uncertainty": args.uncertainty,
+                   "--report": args.report, "the error chart": chart}
+        check_distinct(outputs)
+        check_not_inputs(outputs, {"the photo": args.image, "the keypoint file": args.keypoints,
+                                   "the ground truth": args.truth})
+        if args.uncertainty and args.method == "paper":
+            raise FitError("--uncertainty needs a Gaussian-prior method (mixture or gauss): "
+                           "the paper's solve has no posterior")
+        focal, focal_source = focal_length_px(args.image, (w, h), args.focal_35mm)
+        bar.start("fit")
+        options = FitOptions(method=args.method, refine=not args.no_refine, deform=False if args.no_deform else None,
+                             robust=not args.keep_marks, camera_distance_mm=distance,
+                             principal_point=args.principal_point, focal_px=focal, check_orthographic=True,
+                             view_prior_weight=args.view_weight)
+        result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
+                               options=options, name=args.name or Path(args.image).stem)
+        overlay = draw_overlay(image, result) if args.overlay else None
+        # (the photo plane reads the photo again: only for a report that is written)
+        report = build_report(result, truth, image=args.image if args.report else None)
+
+        bar.start("write")
+        with staged(p for p in outputs.values() if p is not None) as at:
+            write_wireframe(at(args.output), result.wireframe, both_halves=True)
+            if overlay is not None:
+                write_image(at(args.overlay), overlay)
+            if args.uncertainty:
+                result.draw_expected_errors(at(args.uncertainty))
+            if args.report:
+                write_json(at(args.report), report)
+            if chart is not None:
+                draw_error_chart(report["error_mm_at_truth_wheelbase"], at(chart),
+                                 annotated={s.name.removesuffix("_right") for s in result.slots},
+                                 expected_mm=report.get("expected_error_mm"))
     v = result.view
     camera = ("orthographic camera" if result.camera_distance_mm is None
               else f"camera {result.camera_distance_mm:.0f} mm away")

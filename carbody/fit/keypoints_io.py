@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import difflib
 import json
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -82,99 +83,162 @@ class Annotation:
     image_size: tuple[int, int] | None = None
 
 
+def _number(value, where: str) -> float:
+    """A JSON or Python number (a string or a boolean is none: ``"28"`` is no pixel)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise KeypointError(f"{where}: expected a number, got {_shown(value)}")
+    return float(value)
+
+
 def _pair(value, where: str) -> tuple[float, float]:
+    """(u, v) pixels from two numbers (a list, a tuple or a (2,) array)."""
+    if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise KeypointError(f"{where}: expected [u, v] pixels, got {_shown(value)}")
     try:
-        u, v = (float(c) for c in value[:2])
-    except (TypeError, ValueError, IndexError):
-        raise KeypointError(f"{where}: expected [u, v], got {value!r}") from None
+        u, v = (_number(c, where) for c in value)
+    except KeypointError:
+        raise KeypointError(f"{where}: expected [u, v] pixels as two numbers, got {_shown(value)}") from None
     return u, v
+
+
+def _shown(value, limit: int = 60) -> str:
+    """``value`` as a message shows it: short (a hostile file's value may be megabytes)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + "…"
+
+
+def _image_size(value, where: str) -> tuple[int, int]:
+    """(width, height) pixels from two positive whole numbers."""
+    try:
+        w, h = _pair(value, where)
+    except KeypointError:
+        raise KeypointError(f"{where}: expected [width, height] pixels, got {_shown(value)}") from None
+    if not all(np.isfinite(s) and s >= 1 and s == int(s) for s in (w, h)):
+        raise KeypointError(f"{where}: [width, height] must be whole numbers of pixels, got {_shown(value)}")
+    return int(w), int(h)
+
+
+def _text(data: dict, key: str, where: str) -> str | None:
+    """An optional string field (a file name)."""
+    value = data.get(key)
+    if value is not None and not isinstance(value, str):
+        raise KeypointError(f"{where}: {key!r} must be a file name, got {_shown(value)}")
+    return value
+
+
+def _field(data: dict, key: str, kind: type, where: str, what: str):
+    """A required field of JSON type ``kind`` (list or dict), named in the message when it is not."""
+    value = data.get(key)
+    if not isinstance(value, kind):
+        raise KeypointError(f"{where}: {key!r} must be {what}, got {_shown(value)}")
+    return value
 
 
 def _project_json(data: dict, where: str) -> Annotation:
     kps = data["keypoints"]
-    if not isinstance(kps, dict):
-        raise KeypointError(f"{where}: 'keypoints' must map names to [u, v]")
-    points = {str(n): _pair(p, f"{where}: keypoint {n!r}") for n, p in kps.items() if p is not None}
-    size = data.get("image_size") or (
-        (data["width"], data["height"]) if "width" in data and "height" in data else None)
-    return Annotation(points, data.get("image"), tuple(int(s) for s in size) if size else None)
+    points = {n: _pair(p, f"{where}: keypoint {n!r}") for n, p in kps.items() if p is not None}
+    if data.get("image_size") is not None:
+        size = _image_size(data["image_size"], f"{where}: 'image_size'")
+    elif data.get("width") is not None or data.get("height") is not None:
+        size = _image_size((data["width"], data["height"]), f"{where}: 'width' and 'height'")
+    else:
+        size = None
+    return Annotation(points, _text(data, "image", where), size)
 
 
 def _coco_json(data: dict, where: str, annotation: int) -> Annotation:
-    cats = {c.get("id"): c for c in data.get("categories", [])}
-    anns = data.get("annotations") or []
+    categories = _field(data, "categories", list, where, "a list of categories")
+    anns = _field(data, "annotations", list, where, "a list of annotations")
+    images = data.get("images", [])
+    if not isinstance(images, list):
+        raise KeypointError(f"{where}: 'images' must be a list of images, got {_shown(images)}")
+    for key, items in (("categories", categories), ("annotations", anns), ("images", images)):
+        bad = next((x for x in items if not isinstance(x, dict)), None)
+        if bad is not None:
+            raise KeypointError(f"{where}: every one of {key!r} must be an object, got {_shown(bad)}")
     if not anns:
         raise KeypointError(f"{where}: COCO file has no annotations")
-    if not 0 <= annotation < len(anns):
+    if isinstance(annotation, bool) or not isinstance(annotation, int) or not 0 <= annotation < len(anns):
         raise KeypointError(f"{where}: no annotation #{annotation} (file has {len(anns)})")
     ann = anns[annotation]
-    cat = cats.get(ann.get("category_id")) or (next(iter(cats.values())) if len(cats) == 1 else None)
+
+    def key(value):  # an id as a dictionary key (a list or an object is no id)
+        return value if isinstance(value, (int, str)) or value is None else repr(value)
+
+    cats = {key(c.get("id")): c for c in categories}
+    cat = cats.get(key(ann.get("category_id"))) or (next(iter(cats.values())) if len(cats) == 1 else None)
     if cat is None or "keypoints" not in cat:
         raise KeypointError(f"{where}: COCO annotation's category lists no keypoint names")
-    names, flat = cat["keypoints"], ann.get("keypoints") or []
+    names = _field(cat, "keypoints", list, where, "the category's list of keypoint names")
+    bad = next((n for n in names if not isinstance(n, str)), None)
+    if bad is not None:
+        raise KeypointError(f"{where}: COCO keypoint names must be strings, got {_shown(bad)}")
+    flat = ann.get("keypoints") or []
+    if not isinstance(flat, list):
+        raise KeypointError(f"{where}: the annotation's 'keypoints' must be a list of u, v, flag numbers, "
+                            f"got {_shown(flat)}")
     if len(flat) != 3 * len(names):
         raise KeypointError(f"{where}: COCO annotation has {len(flat)} numbers for {len(names)} "
                             f"keypoint names (expected {3 * len(names)})")
     points = {}
     for i, name in enumerate(names):
         u, v, flag = flat[3 * i:3 * i + 3]
-        if flag:  # COCO: 0 = not labelled
-            points[str(name)] = _pair((u, v), f"{where}: keypoint {name!r}")
+        if _number(flag, f"{where}: keypoint {name!r}'s visibility flag"):  # COCO: 0 = not labelled
+            if name in points:
+                raise KeypointError(f"{where}: keypoint {name!r} is named twice in the category")
+            points[name] = _pair((u, v), f"{where}: keypoint {name!r}")
     image, size = None, None
-    for img in data.get("images", []):
-        if img.get("id") == ann.get("image_id"):
-            image = img.get("file_name")
+    for img in images:
+        if key(img.get("id")) == key(ann.get("image_id")):
+            image = _text(img, "file_name", where)
             if "width" in img and "height" in img:
-                size = (int(img["width"]), int(img["height"]))
+                size = _image_size((img["width"], img["height"]), f"{where}: the image's 'width' and 'height'")
     return Annotation(points, image, size)
 
 
 def _labelme_json(data: dict, where: str) -> Annotation:
     points = {}
     for shape in data["shapes"]:
+        if not isinstance(shape, dict):
+            raise KeypointError(f"{where}: every one of 'shapes' must be an object, got {_shown(shape)}")
         if shape.get("shape_type", "point") != "point":
             continue
-        name = str(shape.get("label", ""))
+        name = shape.get("label", "")
+        if not isinstance(name, str):
+            raise KeypointError(f"{where}: a point's 'label' must be a keypoint name, got {_shown(name)}")
         if name in points:
             raise KeypointError(f"{where}: keypoint {name!r} is marked twice")
         pts = shape.get("points") or []
-        if len(pts) != 1:
-            raise KeypointError(f"{where}: point {name!r} has {len(pts)} coordinates, expected 1")
+        if not isinstance(pts, list) or len(pts) != 1:
+            raise KeypointError(f"{where}: point {name!r} must hold one [u, v], got {_shown(pts)}")
         points[name] = _pair(pts[0], f"{where}: keypoint {name!r}")
-    size = (int(data["imageWidth"]), int(data["imageHeight"])) \
-        if data.get("imageWidth") and data.get("imageHeight") else None
-    return Annotation(points, data.get("imagePath"), size)
+    size = None
+    if data.get("imageWidth") is not None or data.get("imageHeight") is not None:
+        size = _image_size((data.get("imageWidth"), data.get("imageHeight")),
+                           f"{where}: 'imageWidth' and 'imageHeight'")
+    return Annotation(points, _text(data, "imagePath", where), size)
 
 
 def read_keypoints(path: str | Path, annotation: int = 0) -> Annotation:
     """Read a keypoint file in any of the three formats (detected from its structure).
 
     Args:
-        path: JSON file: ``{"image", "keypoints": {name: [u, v]}}``, COCO keypoints
-            (``categories[].keypoints`` + ``annotations[].keypoints`` as u, v, flag triples), or
-            labelme (``shapes`` of ``shape_type`` point).
+        path: JSON file (UTF-8, a byte-order mark allowed, at most
+            :data:`~carbody.inputs.MAX_JSON_BYTES`): ``{"image", "image_size", "keypoints":
+            {name: [u, v]}}``, COCO keypoints (``categories[].keypoints`` +
+            ``annotations[].keypoints`` as u, v, flag triples), or labelme (``shapes`` of
+            ``shape_type`` point).
         annotation: which annotation of a COCO file (default the first).
     Raises:
-        KeypointError: unreadable, not JSON, a name given twice in one object, or none of the
-            three structures.
+        KeypointError: missing, a folder, not a regular file, too large, not JSON, a name given
+            twice in one object, none of the three structures, or a field of the wrong type
+            (a coordinate that is not a number, an image size that is not two whole numbers).
     """
-    path = Path(path)
+    from carbody.inputs import read_json
 
-    def unique(pairs: list) -> dict:  # JSON keeps the last of a name given twice: say so instead
-        names = [k for k, _ in pairs]
-        twice = next((k for k in names if names.count(k) > 1), None)
-        if twice is not None:
-            raise KeypointError(f"{path}: {twice!r} is given twice in one object (which is meant?)")
-        return dict(pairs)
-
-    try:
-        data = json.loads(path.read_text(), object_pairs_hook=unique)
-    except OSError as exc:
-        raise KeypointError(f"{path}: cannot read keypoint file ({exc.strerror or exc})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise KeypointError(f"{path}: keypoint file is not JSON ({exc})") from None
     where = str(path)
-    if isinstance(data, dict) and "keypoints" in data and isinstance(data["keypoints"], dict):
+    data = read_json(path, "keypoint file", KeypointError)
+    if isinstance(data, dict) and isinstance(data.get("keypoints"), dict):
         return _project_json(data, where)
     if isinstance(data, dict) and "annotations" in data and "categories" in data:
         return _coco_json(data, where, annotation)
@@ -201,19 +265,20 @@ def check_keypoints(points: dict[str, tuple[float, float]],
             left/right pair marked on one spot (``MIN_TWIN_SEPARATION``).
     """
     slots = keypoint_slots(topology)
+    if image_size is not None:
+        image_size = _image_size(image_size, "image_size")
     if not hasattr(points, "items"):
         raise KeypointError(f"keypoints must map names to (u, v) pixels, got a {type(points).__name__}")
     chosen, uv = [], []
     for name, p in points.items():
+        if not isinstance(name, str):
+            raise KeypointError(f"keypoint names must be strings, got {_shown(name)}")
         if name not in slots:
             close = difflib.get_close_matches(name, list(slots), n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else \
                 f" (names are the 35 keypoints of the topology, right-half ones end in {RIGHT_SUFFIX!r})"
-            raise KeypointError(f"unknown keypoint name {name!r}{hint}")
-        try:
-            u, v = (float(c) for c in p)
-        except (TypeError, ValueError):
-            raise KeypointError(f"keypoint {name!r}: expected (u, v) pixels, got {p!r}") from None
+            raise KeypointError(f"unknown keypoint name {_shown(name)}{hint}")
+        u, v = _pair(p, f"keypoint {name!r}")
         if not (np.isfinite(u) and np.isfinite(v)):
             raise KeypointError(f"keypoint {name!r} has a NaN or infinite coordinate ({u}, {v})")
         if image_size is not None:

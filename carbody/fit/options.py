@@ -9,6 +9,7 @@ function's arguments; how to fit it is here.
 """
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -19,6 +20,11 @@ from carbody.policy import FIT_POLICY, FitPolicy
 
 #: The wheelbases (mm) the fit accepts when told.
 MIN_WHEELBASE_MM, MAX_WHEELBASE_MM = 500.0, 10_000.0
+
+
+def _finite(value) -> bool:
+    """Whether ``value`` is a finite number (a string or a boolean is none)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)) and bool(np.isfinite(value))
 
 
 @dataclass(frozen=True)
@@ -68,11 +74,11 @@ class FitOptions:
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise FitError(f"unknown fit method {self.method!r} (known: {', '.join(METHODS)})")
-        if not (np.isfinite(self.prior_weight) and self.prior_weight > 0):
+        if not (_finite(self.prior_weight) and self.prior_weight > 0):
             raise FitError(f"prior weight {self.prior_weight!r} is not a positive number")
-        if not (np.isfinite(self.view_prior_weight) and self.view_prior_weight >= 0):
+        if not (_finite(self.view_prior_weight) and self.view_prior_weight >= 0):
             raise FitError(f"view prior weight {self.view_prior_weight!r} is not a number ≥ 0")
-        if self.focal_px is not None and not (np.isfinite(self.focal_px) and self.focal_px > 0):
+        if self.focal_px is not None and not (_finite(self.focal_px) and self.focal_px > 0):
             raise FitError(f"focal length {self.focal_px!r} px is not a positive number")
         distance = self.camera_distance_mm
         if isinstance(distance, str) and distance not in ("auto", "orthographic"):

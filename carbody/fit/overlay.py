@@ -62,15 +62,19 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
 
 
 def write_image(path: str | Path, image: np.ndarray) -> Path:
-    """Write an image atomically (a temporary file renamed into place)."""
-    import os
+    """Write an image atomically, in the format its ending names (PNG, JPEG): encoded in memory
+    and written by Python, so that a full disk says so.
 
+    Raises:
+        ImageError: OpenCV cannot encode the picture in that format.
+        OSError: the file cannot be written.
+    """
     import cv2
 
+    from carbody.occ.step_curves import atomic_write
+
     path = Path(path)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix or '.png'}")
-    if not cv2.imwrite(str(tmp), image):
-        tmp.unlink(missing_ok=True)
-        raise ImageError(f"{path}: cannot write image")
-    os.replace(tmp, path)
-    return path
+    ok, data = cv2.imencode(path.suffix or ".png", image)
+    if not ok:
+        raise ImageError(f"{path}: cannot encode the picture as {path.suffix or '.png'}")
+    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(data.tobytes()))

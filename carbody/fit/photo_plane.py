@@ -93,12 +93,13 @@ def read_picture(image_path: str | Path) -> tuple[tuple[int, int], int]:
     Raises:
         ImageError: not an image file.
     """
-    from PIL import Image
+    from carbody.inputs import input_file
+    from carbody.view.predict import check_stored_size, exif_orientation, open_picture
 
-    from carbody.view.predict import exif_orientation
-
+    input_file(image_path, "image file", ImageError)
+    check_stored_size(image_path)
     try:
-        with Image.open(image_path) as im:
+        with open_picture(image_path) as im:
             size = im.size
     except (OSError, ValueError) as exc:
         raise ImageError(f"{image_path}: not an image ({exc})") from None

@@ -37,7 +37,7 @@ from carbody.fit.robust import marks_noise, twin_exchanges
 from carbody.fit.search import refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.view_prior import ViewPrior
-from carbody.library import Library
+from carbody.library import Library, check_library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
 from carbody.wireframe import MIRROR, Wireframe
@@ -66,8 +66,11 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         AngleError: a view outside 0–360° or rolled past ±90°.
         FitError: a bad option or wheelbase, or marks no view of any car explains.
     """
+    if not isinstance(options, (FitOptions, type(None))):
+        raise FitError(f"options must be a FitOptions, got a {type(options).__name__}")
     options = (options or FitOptions()).with_changes(**changes)
     wheelbase_mm = check_wheelbase(wheelbase_mm)
+    check_library(library)
     prior = _view_prior(view, options)
     if library is None:
         from carbody.library import default_library

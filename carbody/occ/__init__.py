@@ -10,9 +10,8 @@ from functools import cache
 
 @cache
 def quiet_occt() -> None:
-    """Keep OCCT's transfer statistics off stdout (our stdout carries JSON)."""
-    from OCP.Message import Message, Message_Gravity
+    """Keep OCCT's messages off stdout (our stdout carries JSON): its transfer statistics, and
+    its own report of a file it cannot parse, which the caller says in one line instead."""
+    from OCP.Message import Message
 
-    printers = Message.DefaultMessenger_s().Printers()
-    for i in range(1, printers.Length() + 1):
-        printers.Value(i).SetTraceLevel(Message_Gravity.Message_Fail)
+    Message.DefaultMessenger_s().ChangePrinters().Clear()

@@ -31,16 +31,13 @@ def write_body_step(path: str | Path, shell, faces: list[tuple[str, tuple[float,
         faces: (face name, sRGB colour 0..1, TopoDS_Face of ``shell``).
         product_name: STEP product name (the car).
     """
-    from OCP.IFSelect import IFSelect_RetDone
     from OCP.Quantity import Quantity_Color, Quantity_TypeOfColor
-    from OCP.STEPCAFControl import STEPCAFControl_Writer
-    from OCP.STEPControl import STEPControl_AsIs
     from OCP.TCollection import TCollection_ExtendedString
     from OCP.TDataStd import TDataStd_Name
     from OCP.TDocStd import TDocStd_Document
     from OCP.XCAFDoc import XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
-    from carbody.occ.step_curves import _init_step_statics, atomic_write
+    from carbody.occ.step_curves import _init_step_statics, write_step_document
 
     _init_step_statics()
     doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
@@ -56,37 +53,30 @@ def write_body_step(path: str | Path, shell, faces: list[tuple[str, tuple[float,
         colour = Quantity_Color(*map(float, rgb), Quantity_TypeOfColor.Quantity_TOC_sRGB)
         colour_tool.SetColor(sub, colour, XCAFDoc_ColorType.XCAFDoc_ColorSurf)
 
-    def write(tmp: str) -> None:
-        writer = STEPCAFControl_Writer()
-        writer.SetNameMode(True)
-        writer.SetColorMode(True)
-        if not writer.Transfer(doc, STEPControl_AsIs) or writer.Write(tmp) != IFSelect_RetDone:
-            raise SurfaceError(f"{path}: OCCT could not write the STEP file")
-
-    return atomic_write(path, write)
+    return write_step_document(path, doc, SurfaceError)
 
 
 def read_body_step(path: str | Path) -> StepBody:
-    """Read a body STEP written by :func:`write_body_step` (or saved back by a CAD system).
+    """Read a body STEP written by :func:`write_body_step` (or saved back by a CAD system), or
+    the body part of an assembly (``car.step``).
 
     Raises:
-        SurfaceError: missing or unreadable file.
+        SurfaceError: missing, not a regular file, too large or unreadable file.
     """
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.Quantity import Quantity_Color
     from OCP.STEPCAFControl import STEPCAFControl_Reader
     from OCP.TCollection import TCollection_ExtendedString
     from OCP.TDataStd import TDataStd_Name
-    from OCP.TDF import TDF_LabelSequence
+    from OCP.TDF import TDF_Label, TDF_LabelSequence
     from OCP.TDocStd import TDocStd_Document
     from OCP.TopAbs import TopAbs_FACE
     from OCP.XCAFDoc import XCAFDoc_ColorTool, XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
+    from carbody.inputs import MAX_STEP_BYTES, input_file
     from carbody.occ.step_curves import _init_step_statics
 
-    path = Path(path)
-    if not path.is_file():
-        raise SurfaceError(f"{path}: no such file")
+    path = input_file(path, "STEP file", SurfaceError, MAX_STEP_BYTES)
     _init_step_statics()
     doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
     reader = STEPCAFControl_Reader()
@@ -110,19 +100,35 @@ def read_body_step(path: str | Path) -> StepBody:
         return attr.Get().ToExtString() if label.FindAttribute(TDataStd_Name.GetID_s(), attr) else ""
 
     product = name_of(root)
-    shape = shape_tool.GetShape_s(root)
-    subs = TDF_LabelSequence()
-    shape_tool.GetSubShapes_s(root, subs)
-    faces = []
-    for i in range(1, subs.Length() + 1):
-        lab = subs.Value(i)
-        face = shape_tool.GetShape_s(lab)
-        if face.ShapeType() != TopAbs_FACE:
-            continue
-        colour = Quantity_Color()
-        rgb = None
-        if XCAFDoc_ColorTool.GetColor_s(lab, XCAFDoc_ColorType.XCAFDoc_ColorSurf, colour):
-            to_srgb = Quantity_Color.Convert_LinearRGB_To_sRGB_s
-            rgb = (to_srgb(colour.Red()), to_srgb(colour.Green()), to_srgb(colour.Blue()))
-        faces.append((name_of(lab), rgb, face))
+
+    def parts(label) -> list:  # the simple shapes of an assembly (car.step), or the shape itself
+        if not shape_tool.IsAssembly_s(label):
+            return [label]
+        components, found = TDF_LabelSequence(), []
+        shape_tool.GetComponents_s(label, components)
+        for i in range(1, components.Length() + 1):
+            referred = TDF_Label()
+            if shape_tool.GetReferredShape_s(components.Value(i), referred):
+                found += parts(referred)
+        return found
+
+    shape, faces = shape_tool.GetShape_s(root), []
+    for part in parts(root):
+        subs = TDF_LabelSequence()
+        shape_tool.GetSubShapes_s(part, subs)
+        found = []
+        for i in range(1, subs.Length() + 1):
+            lab = subs.Value(i)
+            face = shape_tool.GetShape_s(lab)
+            if face.ShapeType() != TopAbs_FACE:
+                continue
+            colour = Quantity_Color()
+            rgb = None
+            if XCAFDoc_ColorTool.GetColor_s(lab, XCAFDoc_ColorType.XCAFDoc_ColorSurf, colour):
+                to_srgb = Quantity_Color.Convert_LinearRGB_To_sRGB_s
+                rgb = (to_srgb(colour.Red()), to_srgb(colour.Green()), to_srgb(colour.Blue()))
+            found.append((name_of(lab), rgb, face))
+        if found and not faces:  # the body: the part whose faces are named
+            shape = shape_tool.GetShape_s(part)
+        faces += found
     return StepBody(product, shape, faces)

@@ -9,6 +9,7 @@ another CAD system that keeps the names reads as well.
 """
 from __future__ import annotations
 
+import io
 import os
 import tempfile
 from dataclasses import dataclass
@@ -16,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from carbody.errors import TemplateError
-from carbody.tolerances import STEP_ROUND_MM
+from carbody.errors import CarbodyError, TemplateError
+from carbody.signals import held
+from carbody.tolerances import MAX_COORDINATE_MM, STEP_ROUND_MM
 
 
 @dataclass
@@ -68,18 +70,52 @@ def atomic_write(path: str | Path, write) -> Path:
     path = Path(path)
     if not path.parent.is_dir():
         raise TemplateError(f"{path}: folder {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent, prefix=f".{path.stem}.")
-    os.close(fd)
+    tmp = None
     try:
+        with held():  # made and noted whole, so that it is removed
+            fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent, prefix=f".{path.stem}.")
+            os.close(fd)
         write(tmp)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual mode
         os.replace(tmp, path)
+    except OSError as exc:  # (a full disk): said of the file asked for, not of the temporary one
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def write_step_document(path: str | Path, doc, error: type[CarbodyError]) -> Path:
+    """Write an XCAF document (names and colours on) as AP214 STEP in millimetres, atomically.
+
+    OCCT writes into memory and Python writes the file, so that a full disk or a refused write
+    is the file system's own error (``OSError``, "no space left on device"), not OCCT's bare
+    "could not write".
+
+    Raises:
+        error: OCCT cannot translate the document.
+        OSError: the file cannot be written.
+    """
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPCAFControl import STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_AsIs
+
+    _init_step_statics()
+    writer = STEPCAFControl_Writer()
+    writer.SetNameMode(True)
+    writer.SetColorMode(True)
+    writer.SetLayerMode(True)
+    stream = io.BytesIO()
+    if not writer.Transfer(doc, STEPControl_AsIs) or writer.WriteStream(stream) != IFSelect_RetDone:
+        raise error(f"{path}: OCCT could not write the STEP file")
+    data = stream.getvalue()
+    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(data))
 
 
 def write_curves_step(path: str | Path, curves: list[NamedCurve] | list[tuple[str, np.ndarray]],
@@ -244,6 +280,16 @@ def _geom_curve(curve, name: str, reversed_: bool = False) -> NamedCurve:
 _LENGTH_UNITS_MM = {"MM": 1.0, "M": 1000.0, "CM": 10.0, "INCH": 25.4, "IN": 25.4, "FT": 304.8, "UM": 1e-3}
 
 
+def _checked(curve: NamedCurve, path: Path) -> NamedCurve:
+    """``curve``, refused when a control point lies further than any car's (or is NaN)."""
+    near = np.all(np.abs(curve.poles) <= MAX_COORDINATE_MM, axis=1)  # NaN is not near either
+    if not near.all():
+        far = curve.poles[~near][0]
+        raise TemplateError(f"{path}: curve {curve.name!r} has a control point at {far.tolist()} mm, "
+                            f"further than any car's ({MAX_COORDINATE_MM:g} mm from the origin)")
+    return curve
+
+
 def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
     """Read every curve of a STEP file with the name the file gives it.
 
@@ -257,7 +303,8 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
         (product name of the root, curves in file order); curves the file leaves unnamed come
         last, named "".
     Raises:
-        TemplateError: the file is missing or not a readable STEP file.
+        TemplateError: the file is missing, not a regular file, too large or not a readable STEP
+            file, or a control point lies further than :data:`~carbody.tolerances.MAX_COORDINATE_MM`.
     """
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.STEPCAFControl import STEPCAFControl_Reader
@@ -266,11 +313,10 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
     from OCP.TDocStd import TDocStd_Document
     from OCP.XCAFDoc import XCAFDoc_DocumentTool
 
+    from carbody.inputs import MAX_STEP_BYTES, input_file
     from carbody.occ.shapes import sub_shapes
 
-    path = Path(path)
-    if not path.is_file():
-        raise TemplateError(f"{path}: no such file")
+    path = input_file(path, "STEP file", TemplateError, MAX_STEP_BYTES)
     _init_step_statics()
     doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
     reader = STEPCAFControl_Reader()
@@ -304,6 +350,7 @@ def read_curves_step(path: str | Path) -> tuple[str, list[NamedCurve]]:
         n_edges = max(n_edges, len(curves))
     if not product:
         product = _first_product_name(reader.ChangeReader().StepModel())
+    curves = [_checked(c, path) for c in curves]
     curves += [NamedCurve("", np.zeros((0, 3)))] * max(0, n_edges - len(curves))
     return product, curves
 
@@ -425,7 +472,7 @@ def _named_items(model, reader, path: Path) -> list[NamedCurve]:
             geom = StepToGeom.MakeCurve_s(step_curve, factors)
             if geom is None:
                 raise TemplateError(f"{path}: curve {name!r} has geometry OCCT cannot read")
-            curves.append(_geom_curve(geom, name, reversed_))
+            curves.append(_checked(_geom_curve(geom, name, reversed_), path))
     return curves
 
 

@@ -66,7 +66,8 @@ def read_surface_wireframe(path: Path):
 def _surface(args) -> int:
     import time
 
-    from carbody.outputs import JSON, PICTURE, STEP, check_distinct, check_output_file
+    from carbody.outputs import JSON, PICTURE, STEP, check_distinct, check_not_inputs, check_output_file, staged
+    from carbody.progress import progress
     from carbody.surface.body import build_body, write_body
 
     check_output_file(args.output, STEP)  # refuse before any work, write nothing
@@ -74,32 +75,37 @@ def _surface(args) -> int:
         check_output_file(args.report, JSON)
     if args.png:
         check_output_file(args.png, PICTURE)
-    check_distinct({"--output": args.output, "--report": args.report, "--png": args.png})
-    t0 = time.perf_counter()
-    wf = read_surface_wireframe(args.wireframe)
-    t1 = time.perf_counter()
-    body = build_body(wf)
-    folds = body.report["folds"]
-    if folds and args.refuse_folds:
-        from carbody.errors import FoldError
+    outputs = {"--output": args.output, "--report": args.report, "--png": args.png}
+    check_distinct(outputs)
+    check_not_inputs(outputs, {"the wireframe": args.wireframe})
+    with progress(("read", "surfaces", "write"), args.quiet) as bar:
+        bar.start("read")
+        t0 = time.perf_counter()
+        wf = read_surface_wireframe(args.wireframe)
+        bar.start("surfaces")
+        t1 = time.perf_counter()
+        body = build_body(wf)
+        folds = body.report["folds"]
+        if folds and args.refuse_folds:
+            from carbody.errors import FoldError
 
-        more = len(folds) - 1
-        raise FoldError(folds[0] + (f"; {more} more region{'s fold' if more > 1 else ' folds'} too" if more else ""))
-    t2 = time.perf_counter()
-    write_body(args.output, body)
-    t3 = time.perf_counter()
-    body.report["timings_s"].update({"read_s": t1 - t0, "build_s": t2 - t1, "write_step_s": t3 - t2})
-    if args.report:
-        from carbody.occ.step_curves import atomic_write
+            more = len(folds) - 1
+            raise FoldError(folds[0] + (f"; {more} more region{'s fold' if more > 1 else ' folds'} too" if more else ""))
+        bar.start("write")
+        t2 = time.perf_counter()
+        with staged(p for p in outputs.values() if p is not None) as at:
+            write_body(at(args.output), body)
+            t3 = time.perf_counter()
+            body.report["timings_s"].update({"read_s": t1 - t0, "build_s": t2 - t1, "write_step_s": t3 - t2})
+            if args.report:
+                from carbody.parts_cli import body_faces
 
-        from carbody.parts_cli import body_faces
+                text = json.dumps({**body.report, "faces": body_faces(body)}, indent=1, default=float)
+                at(args.report).write_text(text)
+            if args.png:
+                from carbody.surface.render import render_body
 
-        text = json.dumps({**body.report, "faces": body_faces(body)}, indent=1, default=float)
-        atomic_write(args.report, lambda tmp: Path(tmp).write_text(text))
-    if args.png:
-        from carbody.surface.render import render_body
-
-        render_body(body, args.png)
+                render_body(body, at(args.png))
     shell = body.report.get("shell", {})
     print(f"wrote {args.output}: {shell.get('faces', len(body.faces))} faces, one shell, "
           f"valid={shell.get('valid')}, free loops={shell.get('free_closed_loops')}", file=sys.stderr)
@@ -123,9 +129,10 @@ def _skeleton(args) -> int:
     if args.region not in names:
         raise SurfaceError(f"unknown region {args.region!r} (known: {', '.join(names)})")
     if args.png:
-        from carbody.outputs import PICTURE, check_output_file
+        from carbody.outputs import PICTURE, check_not_inputs, check_output_file
 
         check_output_file(args.png, PICTURE)
+        check_not_inputs({"--png": args.png}, {"the wireframe": args.wireframe})
     wf = read_surface_wireframe(args.wireframe)
     cp = wf.control_points
     outline = region_outline(cp, topo.region(args.region), outward_sign(cp, topo), topo)

@@ -18,9 +18,12 @@ MANIFEST = "manifest.json"
 
 
 def templates_dir() -> Path:
-    """Folder of the template STEP files: ``$CARBODY_TEMPLATES_DIR`` or the repository's."""
+    """Folder of the template STEP files: ``$CARBODY_TEMPLATES_DIR`` or the shipped one
+    (:data:`carbody.shipped.TEMPLATES`, the repository's ``templates_step/``)."""
+    from carbody.shipped import TEMPLATES
+
     env = os.environ.get("CARBODY_TEMPLATES_DIR")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "templates_step"
+    return Path(env) if env else TEMPLATES
 
 
 def slug(name: str) -> str:
@@ -30,14 +33,18 @@ def slug(name: str) -> str:
 
 def load_manifest(folder: str | Path | None = None) -> list[dict]:
     """The manifest rows: name, class, published dimensions (mm), file, source."""
+    from carbody.inputs import read_json
+
     folder = Path(folder) if folder else templates_dir()
     path = folder / MANIFEST
-    try:
-        rows = json.loads(path.read_text())
-    except OSError:
-        raise TemplateError(f"{path}: no template manifest (run `carbody templates build`)") from None
-    except json.JSONDecodeError as exc:
-        raise TemplateError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
+    if not path.exists():
+        raise TemplateError(f"{path}: no template manifest (run `carbody templates build`)")
+    rows = read_json(path, "template manifest", TemplateError)
+    fields = ("name", "class", "file")
+    if not isinstance(rows, list) or not all(isinstance(r, dict) and all(isinstance(r.get(f), str) for f in fields)
+                                             for r in rows):
+        raise TemplateError(f"{path}: not a template manifest (a list of cars, each with its "
+                            f"{', '.join(fields)} as text)")
     return rows
 
 
@@ -63,33 +70,47 @@ def load_templates(folder: str | Path | None = None) -> list[tuple[dict, Wirefra
     return [(row, read_wireframe(folder / row["file"])) for row in load_manifest(folder)]
 
 
-def build_templates(out_dir: str | Path | None = None, design_table: str | Path | None = None) -> list[dict]:
-    """Build every car of the design table and write ``NAME.step`` files and the manifest.
+def build_templates(out_dir: str | Path, design_table: str | Path | None = None,
+                    quiet: bool = False) -> list[dict]:
+    """Build every car of the design table and write ``NAME.step`` files and the manifest into
+    ``out_dir`` (the repository's is ``templates_step/``; an installed package's own is never
+    written), all or nothing (:func:`carbody.outputs.staged`).
 
+    Args:
+        quiet: no progress bar.
     Returns:
         the manifest rows written.
     """
-    from carbody.templates.design import build_wireframe, load_design_tables
+    from tqdm import tqdm
+
+    from carbody.outputs import output_folder, staged
+    from carbody.progress import bar_disabled
+    from carbody.templates.design import load_design_tables
+
+    tables = load_design_tables(design_table)
+    with output_folder(out_dir) as out, \
+            staged([out / f"{slug(d.name)}.step" for d in tables] + [out / MANIFEST]) as at:
+        rows = [_build_one(d, at(out / f"{slug(d.name)}.step"))
+                for d in tqdm(tables, desc="carbody templates build", unit="car", disable=bar_disabled(quiet),
+                              leave=False)]
+        at(out / MANIFEST).write_text(json.dumps(rows, indent=1) + "\n")
+    return rows
+
+
+def _build_one(d, path: Path) -> dict:
+    """Build one car of the design table, write its STEP file to ``path``; its manifest row."""
+    from carbody.templates.design import build_wireframe
     from carbody.wireframe import write_wireframe
 
-    out = Path(out_dir) if out_dir else templates_dir()
-    out.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for d in load_design_tables(design_table):
-        points = build_wireframe(d)
-        file = f"{slug(d.name)}.step"
-        write_wireframe(out / file, Wireframe(d.name, points))
-        rows.append({
-            "name": d.name, "class": d.car_class, "file": file,
-            "length_mm": d.length, "width_mm": d.width, "height_mm": d.height,
-            "wheelbase_mm": d.wheelbase, "front_overhang_mm": d.front_overhang,
-            "rear_overhang_mm": d.rear_overhang, "track_front_mm": d.track_front,
-            "track_rear_mm": d.track_rear, "tyre_radius_mm": d.tyre_radius,
-            "ground_clearance_mm": d.ground_clearance, "source": d.source,
-        })
-    text = json.dumps(rows, indent=1) + "\n"
-    (out / MANIFEST).write_text(text)
-    return rows
+    write_wireframe(path, Wireframe(d.name, build_wireframe(d)))
+    return {
+        "name": d.name, "class": d.car_class, "file": path.name,
+        "length_mm": d.length, "width_mm": d.width, "height_mm": d.height,
+        "wheelbase_mm": d.wheelbase, "front_overhang_mm": d.front_overhang,
+        "rear_overhang_mm": d.rear_overhang, "track_front_mm": d.track_front,
+        "track_rear_mm": d.track_rear, "tyre_radius_mm": d.tyre_radius,
+        "ground_clearance_mm": d.ground_clearance, "source": d.source,
+    }
 
 
 def measure_template(row: dict, wireframe: Wireframe) -> dict[str, float]:

@@ -26,7 +26,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
     q = tsub.add_parser("build", help="build the template STEP files from a design table")
     q.add_argument("--design-table", type=Path, help="design table JSON (default: the shipped one)")
-    q.add_argument("--out", type=Path, help="output folder (default: templates_step/)")
+    q.add_argument("--out", type=Path, required=True,
+                   help="output folder (the repository's library: templates_step/; an installed "
+                        "package's own is not written: build into a folder of yours and point "
+                        "$CARBODY_TEMPLATES_DIR at it)")
     q.set_defaults(func=_build)
 
     q = tsub.add_parser("check", help="measure every template against its manifest (1 %% tolerance)")
@@ -70,10 +73,10 @@ def _show(args) -> int:
 
 
 def _build(args) -> int:
-    from carbody.templates import build_templates, templates_dir
+    from carbody.templates import build_templates
 
-    rows = build_templates(args.out, args.design_table)
-    print(f"wrote {len(rows)} templates and manifest.json to {args.out or templates_dir()}")
+    rows = build_templates(args.out, args.design_table, quiet=args.quiet)
+    print(f"wrote {len(rows)} templates and manifest.json to {args.out}")
     return 0
 
 

@@ -59,7 +59,7 @@ def _render_dataset(args) -> int:
     vary = Variation(background=not (args.plain or args.no_background), colour=not (args.plain or args.no_colour),
                      elevation=not (args.plain or args.no_elevation))
     kw = dict(count=args.count or DEFAULT_COUNT, seed=args.seed, bodies_per_template=args.bodies_per_template,
-              vary=vary)
+              vary=vary, progress=not args.quiet)
     if args.scheduler is None and args.workers is None:
         manifest = render_dataset(args.out_dir, **kw)
     else:
@@ -78,7 +78,7 @@ def _train_view(args) -> int:
     check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                       threads=args.threads, schedule=args.schedule)
-    hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot)
+    hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot, progress=not args.quiet)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "
           f"({hist.seconds:.0f} s)")
     return 0

@@ -386,6 +386,7 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
     from tqdm import tqdm
 
     from carbody.library import load_library
+    from carbody.progress import bar_disabled
     from carbody.templates import load_templates
 
     if count < N_CLASSES:
@@ -409,7 +410,7 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
     per_body = [count // len(bodies) + (i < count % len(bodies)) for i in range(len(bodies))]
     (out / "images").mkdir(parents=True, exist_ok=True)
     skipped: list[dict] = []
-    bar = tqdm(total=count, desc="render-dataset", unit="img", disable=not progress)
+    bar = tqdm(total=count, desc="render-dataset", unit="img", disable=bar_disabled(not progress))
     if client is None:
         manifest_rows = _render_here(out, bodies, per_body, seed, vary, val_templates, surface_body, skipped, bar)
     else:

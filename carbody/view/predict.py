@@ -10,7 +10,9 @@ mirrored classes), which makes left/right mistakes rarer at little cost.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +26,12 @@ SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "view_mobilenetv
 
 #: Pictures smaller than this on either side are refused (pixels).
 MIN_IMAGE_SIDE = 16
+
+#: Pictures with more pixels than this are refused, from the file's header before decoding it:
+#: a 108-megapixel phone photo fits; a larger one (or a "decompression bomb", a small file
+#: whose header claims 100000 x 100000 pixels) would take gigabytes to decode and draw on, for
+#: no better fit (the fit needs a few hundred pixels across the car): resize it first.
+MAX_IMAGE_PIXELS = 120_000_000
 
 
 @dataclass
@@ -71,9 +79,7 @@ def exif_orientation(path: str | Path) -> int:
     picture.
     """
     try:
-        from PIL import Image
-
-        with Image.open(path) as im:
+        with open_picture(path) as im:
             value = int(im.getexif().get(0x0112, 1))
     except Exception:  # no EXIF, or not a format PIL reads: as stored
         return 1
@@ -92,6 +98,42 @@ def upright(arr: np.ndarray, orientation: int) -> np.ndarray:
     return arr
 
 
+@contextlib.contextmanager
+def open_picture(path: str | Path):
+    """PIL's lazy view of an image file (header and EXIF; pixels only when asked), without PIL's
+    warning about a large picture (carbody's own limit is :data:`MAX_IMAGE_PIXELS`)."""
+    from PIL import Image
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        with Image.open(path) as im:
+            yield im
+
+
+def check_stored_size(path: Path) -> None:
+    """Refuse an image file whose header states more than :data:`MAX_IMAGE_PIXELS` pixels,
+    without decoding it (a header PIL cannot read is left to OpenCV, whose own limit is 2^30)."""
+    from PIL import Image
+
+    try:
+        with open_picture(path) as im:
+            size = im.size
+    except Image.DecompressionBombError:  # PIL's own limit lies above ours
+        check_pixel_count((MAX_IMAGE_PIXELS + 1, 1), path)
+    except Exception:  # not a format PIL reads
+        return
+    check_pixel_count(size, path)
+
+
+def check_pixel_count(size: tuple[int, int] | None, name) -> None:
+    """Refuse a picture of more than :data:`MAX_IMAGE_PIXELS` pixels (``size`` (width, height))."""
+    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+        w, h = size
+        shown = f"{w} x {h} px is" if h > 1 else "the picture has"
+        raise ImageError(f"{name}: {shown} more than the {MAX_IMAGE_PIXELS / 1e6:.0f} megapixels "
+                         "carbody reads; resize the photo (and mark it at that size)")
+
+
 def read_image(image) -> np.ndarray:
     """(h, w, 3) uint8 RGB from a path or an array (gray, gray+alpha, RGB, RGBA; 8 or 16 bit).
 
@@ -99,14 +141,17 @@ def read_image(image) -> np.ndarray:
     viewers and annotation tools show it.
 
     Raises:
-        ImageError: missing or empty file, not an image, empty or tiny picture.
+        ImageError: missing or empty file, not a regular file, not an image, empty or tiny
+            picture, or more than :data:`MAX_IMAGE_PIXELS` pixels (refused from the file's
+            header, before decoding).
     """
     import cv2
 
     if isinstance(image, (str, Path)):
-        path = Path(image)
-        if not path.is_file():
-            raise ImageError(f"{path}: no such image file")
+        from carbody.inputs import input_file
+
+        path = input_file(image, "image file", ImageError)
+        check_stored_size(path)
         data = np.fromfile(path, dtype=np.uint8)
         if data.size == 0:
             raise ImageError(f"{path}: the file is empty")
@@ -122,6 +167,7 @@ def read_image(image) -> np.ndarray:
         name = "image"
     if arr.size == 0 or arr.ndim not in (2, 3):
         raise ImageError(f"{name}: empty or not a picture (shape {arr.shape})")
+    check_pixel_count(arr.shape[1::-1], name)
     if arr.ndim == 3 and arr.shape[2] not in (1, 2, 3, 4):
         raise ImageError(f"{name}: {arr.shape[2]} channels (need 1, 2, 3 or 4)")
     h, w = arr.shape[:2]
@@ -158,10 +204,9 @@ def load_classifier(weights: str | None = None):
     Raises:
         ViewError: missing or unreadable weights file.
     """
-    path = Path(weights) if weights else SHIPPED_WEIGHTS
-    if not path.is_file():
-        raise ViewError(f"{path}: no such weights file"
-                        + (" (the package ships without trained weights)" if not weights else ""))
+    from carbody.inputs import MAX_WEIGHTS_BYTES, input_file
+
+    path = input_file(Path(weights) if weights else SHIPPED_WEIGHTS, "weights file", ViewError, MAX_WEIGHTS_BYTES)
     return _load_classifier(str(path), path.stat().st_mtime_ns)
 
 

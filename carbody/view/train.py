@@ -86,9 +86,11 @@ def load_images(dataset_dir: str | Path, rows: list[dict], progress: bool = True
     import cv2
     from tqdm import tqdm
 
+    from carbody.progress import bar_disabled
+
     root = Path(dataset_dir)
     out = np.empty((len(rows), INPUT_SIZE, INPUT_SIZE, 3), dtype=np.uint8)
-    for i, r in enumerate(tqdm(rows, desc="load", unit="img", disable=not progress, leave=False)):
+    for i, r in enumerate(tqdm(rows, desc="load", unit="img", disable=bar_disabled(not progress), leave=False)):
         img = cv2.imread(str(root / r["file"]), cv2.IMREAD_COLOR)
         if img is None:
             raise ViewError(f"{root / r['file']}: not a readable image")
@@ -153,6 +155,7 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
     import torch
     from tqdm import tqdm
 
+    from carbody.progress import bar_disabled
     from carbody.view.dataset import read_manifest
     from carbody.view.network import build_mobilenet_v2
 
@@ -185,7 +188,7 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
         else (lambda i: 1.0))
     hist = History()
     t0 = time.perf_counter()
-    bar = tqdm(range(config.epochs), desc="train-view", unit="epoch", disable=not progress)
+    bar = tqdm(range(config.epochs), desc="train-view", unit="epoch", disable=bar_disabled(not progress))
     for _ in bar:
         model.train()
         order = rng.permutation(len(x_train))
