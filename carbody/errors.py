@@ -32,6 +32,13 @@ class FitError(CarbodyError):
     """Single-view fitting cannot run on the given input (view, keypoints, library)."""
 
 
+class FitRefused(FitError):
+    """The fit ran but explains the marks badly (:func:`carbody.fit.report.refusal_line`): no
+    wireframe is given out unless forced (``force=True``, ``--force``). ``partial``, when set,
+    is what was made before the refusal (a :class:`carbody.pipeline.Reconstruction` without a
+    body), so that its overlay and report can still be written."""
+
+
 class AngleError(FitError):
     """A view angle given to the fit is not a number or lies outside its range."""
 

@@ -87,21 +87,30 @@ class Library:
         t = self.template_names.index(template) if isinstance(template, str) else int(template)
         return int(np.flatnonzero((self.template_index == t) & np.all(self.factors == 1.0, axis=1))[0])
 
-    def without(self, template: str) -> "Library":
-        """This library less one template and all its expansions (leave-one-out)."""
-        if template not in self.template_names:
-            raise LibraryError(f"unknown template {template!r} (known: {', '.join(self.template_names)})")
-        drop = self.template_names.index(template)
-        keep = self.template_index != drop
-        remap = np.array([i - (i > drop) for i in range(len(self.template_names))])
+    def without(self, *templates: str) -> "Library":
+        """This library less the templates named and all their expansions (leave-one-out)."""
+        for template in templates:
+            if template not in self.template_names:
+                raise LibraryError(f"unknown template {template!r} (known: {', '.join(self.template_names)})")
+        drop = [i for i, n in enumerate(self.template_names) if n in templates]
+        keep = ~np.isin(self.template_index, drop)
+        remap = np.cumsum([i not in drop for i in range(len(self.template_names))]) - 1
         return Library(
             S=self.S[:, keep],
-            template_names=[n for i, n in enumerate(self.template_names) if i != drop],
+            template_names=[n for i, n in enumerate(self.template_names) if i not in drop],
             template_index=remap[self.template_index[keep]],
             factors=self.factors[keep],
             template_wheelbase_mm=np.delete(self.template_wheelbase_mm, drop),
-            template_classes=[c for i, c in enumerate(self.template_classes) if i != drop],
+            template_classes=[c for i, c in enumerate(self.template_classes) if i not in drop],
         )
+
+    def without_class(self, template: str) -> "Library":
+        """This library less ``template`` and every other template of its class: how the fit does
+        on a kind of car it has never seen (a pickup with no pickup among the templates)."""
+        if template not in self.template_names:
+            raise LibraryError(f"unknown template {template!r} (known: {', '.join(self.template_names)})")
+        kind = self.template_classes[self.template_names.index(template)]
+        return self.without(*(n for n, c in zip(self.template_names, self.template_classes) if c == kind))
 
 
 def check_library(library) -> None:

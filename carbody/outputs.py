@@ -167,22 +167,25 @@ def output_folder(path: str | Path) -> Iterator[Path]:
 
 
 @contextlib.contextmanager
-def staged(targets: Iterable[str | Path]) -> Iterator[Callable[[str | Path], Path]]:
+def staged(targets: Iterable[str | Path], remove: Iterable[str | Path] = ()) -> Iterator[Callable[[str | Path], Path]]:
     """Write a run's files all or nothing.
 
     Yields ``at(target)``: where to write each target file, in a staging folder
     (``.carbody-*``) made beside it. When the block ends normally every target must have been
-    written; they are then moved into place together, and if one move fails the ones already
-    moved are put back, with the files that were there before. When the block fails (a full
-    disk, an interruption), no target is touched. The staging folders are removed either way.
+    written; they are then moved into place together, and the files ``remove`` names (an
+    earlier run's outputs this run does not make: stale beside its own) are taken away with
+    them; if one move fails the ones already moved are put back, with the files that were there
+    before. When the block fails (a full disk, an interruption), no target is touched. The
+    staging folders are removed either way.
 
     Raises:
         OutputError: a staging folder cannot be made, or a target was not written.
     """
     targets = [Path(t) for t in targets]
+    removals = [Path(r) for r in remove if os.path.lexists(r) and Path(r) not in targets]
     stages: dict[str, Path] = {}
     try:
-        for target in targets:
+        for target in targets + removals:
             folder = os.path.dirname(os.path.abspath(target))
             if folder not in stages:
                 try:
@@ -200,7 +203,8 @@ def staged(targets: Iterable[str | Path]) -> Iterator[Callable[[str | Path], Pat
             for target, new in where.items():
                 if not new.is_file():
                     raise OutputError(f"{target}: was not written")
-            _move_into_place(list(where.items()))
+            gone = [(r, stages[os.path.dirname(os.path.abspath(r))] / f".removed-{k}") for k, r in enumerate(removals)]
+            _move_into_place(list(where.items()), gone)
         except OSError as exc:  # named for the user's file, not the staging folder's
             named = _unstaged(f"{exc.filename}: " if exc.filename else "", stages, targets)
             raise OutputError(f"{named}{(exc.strerror or str(exc)).lower()}") from None
@@ -222,17 +226,21 @@ def _unstaged(text: str, stages: dict[str, Path], targets: list[Path]) -> str:
     return text
 
 
-def _move_into_place(moves: list[tuple[Path, Path]]) -> None:
+def _move_into_place(moves: list[tuple[Path, Path]], gone: list[tuple[Path, Path]] = ()) -> None:
     """Rename each staged file onto its target (same folder, so no copy and no new space), the
-    previous file kept aside in the staging folder until all are in; undone on any failure. A
-    stop signal waits until they are all in."""
+    previous file kept aside in the staging folder until all are in, and each file of ``gone``
+    (file, where it is kept aside) into the staging folder; undone on any failure. A stop signal
+    waits until they are all in."""
     with held():
-        _move_all(moves)
+        _move_all(moves, gone)
 
 
-def _move_all(moves: list[tuple[Path, Path]]) -> None:
+def _move_all(moves: list[tuple[Path, Path]], gone: list[tuple[Path, Path]] = ()) -> None:
     done: list[tuple[Path, Path | None]] = []
     try:
+        for target, aside in gone:
+            os.replace(target, aside)
+            done.append((target, aside))
         for i, (target, new) in enumerate(moves):
             previous = None
             if os.path.lexists(target):

@@ -19,7 +19,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from carbody.errors import CarbodyError, KeypointError, OutputError, SurfaceError
+from carbody.errors import CarbodyError, FitRefused, KeypointError, OutputError, SurfaceError
 
 #: The stages, in order, as the progress display names them.
 STAGES = ("view", "fit", "surfaces")
@@ -52,7 +52,8 @@ class Reconstruction:
             ``"classifier"`` (its probabilities); the search looks at every view either way.
         view_prediction: the classifier's answer (:class:`carbody.view.predict.ViewPrediction`) or None.
         fit: the wireframe fit (:class:`carbody.fit.FitResult`).
-        body: the surfaced body (:class:`carbody.surface.Body`).
+        body: the surfaced body (:class:`carbody.surface.Body`); None in the ``partial`` of a
+            run that failed after the fit (:meth:`write_failed`).
         timings_s: seconds per stage.
         fallback: None, or why and how the fit was made stiffer to surface the body
             (``SURFACE_FALLBACKS``): {"reason": the first fit's surface error, "fit": which
@@ -69,6 +70,8 @@ class Reconstruction:
     body: Any
     timings_s: dict[str, float] = field(default_factory=dict)
     fallback: dict[str, str] | None = None
+    #: why a run that failed after the fit gave no body (one line), else None
+    error: str | None = None
 
     @property
     def wireframe(self):
@@ -118,13 +121,16 @@ class Reconstruction:
         if self.view_prediction is not None:
             p = self.view_prediction
             view["classifier"] = {"class_deg": p.class_deg, "theta_deg": p.theta_deg, "confidence": p.confidence}
-        shell = self.body.report.get("shell", {})
+        shell = None if self.body is None else self.body.report.get("shell", {})
         return {
             "car": self.name,
+            # "body", or "failed" (no body: ``error`` says why, in the line the command printed)
+            "outcome": "body" if self.body is not None else "failed",
+            "error": self.error,
             "image": str(self.image_path) if self.image_path else None,
             "view": view,
             "fit": build_report(self.fit, truth, image=self.image_path),
-            "surfaces": {"faces": len(self.body.faces), **shell},
+            "surfaces": None if self.body is None else {"faces": len(self.body.faces), **shell},
             # None, or why the fit was made stiffer and which fit the outputs are of
             "fit_fallback": self.fallback,
             "timings_s": self.timings_s,
@@ -163,8 +169,11 @@ class Reconstruction:
             lines.append(f"note: the fitted wireframe could not be surfaced ({fallback['reason']}); the wireframe "
                          f"and body are {fallback['share_of_fit']:.0%} of it blended with a stiffer fit: {fallback['fit']}")
         s = report["surfaces"]
-        lines.append(f"body: {s['faces']} Bezier faces in one shell, valid={s.get('valid')}, "
-                     f"open only at {s.get('free_closed_loops')} closed bottom loop(s)")
+        if s is None:
+            lines.append(f"no body: {report['error']}")
+        else:
+            lines.append(f"body: {s['faces']} Bezier faces in one shell, valid={s.get('valid')}, "
+                         f"open only at {s.get('free_closed_loops')} closed bottom loop(s)")
         lines.append("times: " + ", ".join(f"{k} {v:.2f} s" for k, v in report["timings_s"].items()))
         return "\n".join(lines) + "\n"
 
@@ -192,6 +201,25 @@ class Reconstruction:
                 self._write_all(lambda name: at(out / name), truth)
         keys = ("wireframe", "body", "assembly", "overlay", "render", "report", "summary")
         return {key: out / name for key, name in zip(keys, OUTPUT_FILES)}
+
+    def write_failed(self, out_dir: str | Path, truth=None) -> list[Path]:
+        """Write what shows why a run failed after its fit (``body`` None): ``overlay.png``,
+        ``report.json`` (``outcome`` "failed", ``error``) and ``summary.txt``, all or nothing;
+        the other :data:`OUTPUT_FILES` an earlier run left in the folder are taken away with it,
+        so that none is taken for this run's. Returns the files written."""
+        from carbody.fit.overlay import draw_overlay, write_image
+        from carbody.outputs import output_folder, staged
+
+        names = ("overlay.png", "report.json", "summary.txt")
+        with output_folder(out_dir) as out:
+            check_output_dir(out, inputs={"the photo": self.image_path})
+            with staged([out / n for n in names], remove=[out / n for n in OUTPUT_FILES if n not in names]) as at:
+                write_image(at(out / "overlay.png"), draw_overlay(self.image[..., ::-1].copy(), self.fit))
+                report = self.report(truth)
+                report["files"] = sorted(names)
+                at(out / "report.json").write_text(json.dumps(report, indent=1))
+                at(out / "summary.txt").write_text(self.summary(report))
+        return [out / n for n in names]
 
     def _write_all(self, at: Callable[[str], Path], truth) -> None:
         """Write :data:`OUTPUT_FILES`, each where ``at(its name)`` says."""
@@ -309,7 +337,7 @@ def _read_inputs(image, keypoints):
     return rgb, image_path, ann
 
 
-def _check_arguments(wheelbase_mm, name, library, reject_outliers) -> None:
+def _check_arguments(wheelbase_mm, name, library, reject_outliers, force=False) -> None:
     """Refuse, before any work, the arguments of :func:`reconstruct` its stages would only meet
     later (the view, the camera and the fit options are checked where they are read, also first)."""
     from carbody.fit.options import check_wheelbase
@@ -321,13 +349,15 @@ def _check_arguments(wheelbase_mm, name, library, reject_outliers) -> None:
         raise CarbodyError(f"the car's name must be a string, got {name!r}")
     if not isinstance(reject_outliers, (bool, np.bool_)):
         raise CarbodyError(f"reject_outliers must be True or False, got {reject_outliers!r}")
+    if not isinstance(force, bool):
+        raise CarbodyError(f"force must be True or False, got {force!r}")
 
 
 def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm: float | None = None, *,
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
                 principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
                 name: str | None = None, library=None, reject_outliers: bool = True,
-                view_prior_weight: float = 1.0,
+                view_prior_weight: float = 1.0, force: bool = False,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
 
@@ -357,22 +387,29 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             as named.
         view_prior_weight: how strongly the view given, or the classifier's, counts in the
             search (a factor on its −log prior; 0: the marks alone).
+        force: give the car even when the fit explains the marks badly.
         on_stage: called with each stage's name as it starts (progress display).
 
     Raises:
+        carbody.errors.FitRefused: the fit explains the marks badly
+            (:func:`carbody.fit.report.refusal_line`: how, and which marks) and ``force`` is false.
         carbody.errors.CarbodyError: any bad input, in one line (unreadable image, keypoints that
             do not fit the image, a view outside 0-360, too few or degenerate keypoints, ...).
+            An error raised after the fit (a refusal, a body that cannot be surfaced) carries
+            ``partial``: the :class:`Reconstruction` without a body, whose
+            :meth:`~Reconstruction.write_failed` writes its overlay and report.
     """
     from carbody.camera import View, read_view
     from carbody.fit import FitOptions, ViewPrior, fit_wireframe
     from carbody.library import default_library
     from carbody.fit.focal import focal_length_px
+    from carbody.fit.report import refusal_line
     from carbody.surface import build_body
 
     timings: dict[str, float] = {}
     rgb, image_path, ann = _read_inputs(image, keypoints)
     h, w = rgb.shape[:2]
-    _check_arguments(wheelbase_mm, name, library, reject_outliers)
+    _check_arguments(wheelbase_mm, name, library, reject_outliers, force)
     name = name or (image_path.stem if image_path else "car")
     options = FitOptions(camera_distance_mm=camera_distance_mm, principal_point=principal_point,
                          robust=reject_outliers, check_orthographic=True, view_prior_weight=view_prior_weight)
@@ -405,6 +442,15 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     fit = fit_with(ann.points)
     timings["fit"] = time.perf_counter() - start
 
+    def failed(exc: CarbodyError) -> CarbodyError:
+        """``exc`` carrying what was made before it (``partial``: its overlay and report)."""
+        exc.partial = Reconstruction(name, rgb, image_path, source, prediction, fit, None, timings, None, str(exc))
+        return exc
+
+    refused = None if force else refusal_line(fit)
+    if refused:
+        raise failed(FitRefused(refused))
+
     start = stage("surfaces")
     fallback = None
     from threadpoolctl import threadpool_limits
@@ -427,7 +473,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             fallback = {"reason": str(exc), "fit": label, "share_of_fit": share}
             break
         else:
-            raise exc from None
+            raise failed(exc) from None
     timings["surfaces"] = time.perf_counter() - start
     return Reconstruction(name, rgb, image_path, source, prediction, fit, body, timings, fallback)
 

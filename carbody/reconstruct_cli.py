@@ -57,6 +57,7 @@ def run_reconstruct(args: argparse.Namespace, out=sys.stdout) -> int:
 
 
 def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) -> int:
+    from carbody.errors import CarbodyError
     from carbody.fit.cli import load_truth
     from carbody.pipeline import STAGES, reconstruct
     from carbody.progress import progress
@@ -70,11 +71,20 @@ def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) ->
             print(f"carbody: stage {label} ({k}/{len(STAGES) + 1})", file=sys.stderr, flush=True)
 
     with progress((*STAGES, "write"), args.quiet) as bar:
-        result = reconstruct(args.image, args.keypoints, view, args.wheelbase, name=args.name,
-                             elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
-                             principal_point=args.principal_point, focal_35mm=args.focal_35mm,
-                             reject_outliers=not args.keep_marks, view_prior_weight=args.view_weight,
-                             on_stage=on_stage)
+        try:
+            result = reconstruct(args.image, args.keypoints, view, args.wheelbase, name=args.name,
+                                 elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
+                                 principal_point=args.principal_point, focal_35mm=args.focal_35mm,
+                                 reject_outliers=not args.keep_marks, view_prior_weight=args.view_weight,
+                                 force=args.force, on_stage=on_stage)
+        except CarbodyError as exc:
+            partial = getattr(exc, "partial", None)
+            if partial is None:
+                raise
+            # failed after the fit: what shows why is written, beside the one line
+            on_stage("write")
+            written = partial.write_failed(args.out, truth)
+            raise type(exc)(f"{exc}; wrote {', '.join(p.name for p in written)} to {args.out}") from None
         on_stage("write")
         paths = result.write(args.out, truth)
     print((args.out / "summary.txt").read_text(), end="", file=out)

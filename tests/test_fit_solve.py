@@ -356,11 +356,12 @@ def test_mixture_prior_fits_a_left_out_car(library, topology):
     assert err.max() < 60 and res.solution.residual_px.mean() < 3
 
 
-def test_deformation_moves_an_unlike_car_onto_its_marks(library, topology):
+def test_deformation_moves_an_unlike_car_onto_its_marks(first_library, topology):
     """A car no template resembles (the pickup, left out): the mix misses its marks by ~5 px;
     the deformation moves it closer to them (a stiff field: part of the miss stays), keeps the
     wheel centres, the symmetry plane and the curve joins, and the marked keypoints get closer
     in 3D."""
+    library = first_library
     template = "Ford F-150 SuperCrew 5.5 ft"
     t, loo, truth = _left_out(library, template)
     wb = float(library.template_wheelbase_mm[t])
@@ -387,11 +388,12 @@ def test_deformation_moves_an_unlike_car_onto_its_marks(library, topology):
 
 
 @pytest.mark.parametrize("azimuth", [30, 150])
-def test_deformation_moves_a_pillar_along_the_car(library, topology, azimuth):
+def test_deformation_moves_a_pillar_along_the_car(first_library, topology, azimuth):
     """The MPV (left out) has its B-pillar ~130 mm further back than any mix puts it: the
     field's local part, mostly along the car, takes the marked pillar foot there instead of
     across the picture to the nearest point of its line of sight — part of the way already in
     the solve (the joint field), the rest by the deformation after it."""
+    library = first_library
     t, loo, truth = _left_out(library, "Chrysler Pacifica")
     wb = library.template_wheelbase_mm[t]
     slots, uv = _observe(truth, View(azimuth, 10), scale=0.5, noise=1.0)
@@ -407,12 +409,13 @@ def test_deformation_moves_a_pillar_along_the_car(library, topology, azimuth):
     assert errors[1].mean() < errors[0].mean() + 1.0  # the rest of the car no worse for it
 
 
-def test_the_joint_field_keeps_a_near_side_view_from_widening_the_car(library, topology):
+def test_the_joint_field_keeps_a_near_side_view_from_widening_the_car(first_library, topology):
     """A level view 15° off the side sees the width only through a quarter of each point's move
     along the car: where the left-out saloon's features sit off every template's along the car,
     the library's span alone (``joint_field=False``) bends into a car ~10 % too wide to place
     them; with the local deformation field in the solve (JOINT_FIELD_AMPLITUDE) they move along
     the car instead."""
+    library = first_library
     t, loo, truth = _left_out(library, "Tesla Model 3")
     wb = float(library.template_wheelbase_mm[t])
     slots, uv = _observe(truth, View(105), scale=0.5, noise=0.5)
@@ -452,10 +455,11 @@ def _pinhole_observe(truth, view, distance, scale=0.5, offset=(500.0, 300.0), no
 
 
 @pytest.mark.parametrize("template", ["Ford F-150 SuperCrew 5.5 ft", "Mazda MX-5 ND"])
-def test_a_told_camera_distance_gives_the_cars_size(library, template):
+def test_a_told_camera_distance_gives_the_cars_size(first_library, template):
     """No wheelbase told: the mix of the other cars makes the pickup ~20 % too short and the
     roadster ~20 % too long. Told how far the camera stood (mm), the perspective says how far
     that is in wheelbases, so the two give the size."""
+    library = first_library
     t, loo, truth = _left_out(library, template)
     wb = float(library.template_wheelbase_mm[t])
     kps = _pinhole_observe(truth, View(30, 10), 2200.0, noise=1.0)
@@ -473,11 +477,12 @@ def test_a_told_camera_distance_gives_the_cars_size(library, template):
 
 @pytest.mark.parametrize("template, doubted", [("Ford F-150 SuperCrew 5.5 ft", True), ("Mazda MX-5 ND", True),
                                                ("Toyota Camry XV70", False), ("Volkswagen Golf Mk7", False)])
-def test_a_size_the_car_s_proportions_doubt_is_said(library, template, doubted):
+def test_a_size_the_car_s_proportions_doubt_is_said(first_library, template, doubted):
     """No wheelbase told, the mix of the other cars sizes the pickup ~25 % short and the
     roadster ~20 % long; their width and height in wheelbases (narrow and low: a long car;
     wide and tall: a short one) say so, and the fit notes that the size is uncertain. A car
     like the library's gets no such note."""
+    library = first_library
     from carbody.fit.report import build_report, fit_notes
 
     t, loo, truth = _left_out(library, template)

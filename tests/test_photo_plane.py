@@ -66,8 +66,8 @@ def test_a_camera_turned_to_an_off_centre_car_gets_the_photo_s_own_image_plane(l
     plane = fitted_plane(result, tmp_path / "photo.jpg")
     car = _both_halves(result)
     # (the turn uses the focal length it was told, the fitted pinhole its own scale × distance:
-    # the two cameras agree to a few hundredths of a pixel, not exactly)
-    assert np.abs(plane.photo_pixel(car, (2000, 1000)) - result.project_points(car)).max() < 0.1
+    # the two cameras agree to about a tenth of a pixel, not exactly)
+    assert np.abs(plane.photo_pixel(car, (2000, 1000)) - result.project_points(car)).max() < 0.25
     assert plane.lineup_px < 0.05
     axis = plane.centre_mm - plane.eye_mm
     assert np.degrees(np.arccos(abs(axis @ np.cross(plane.right, plane.up)) / np.linalg.norm(axis))) < 0.5

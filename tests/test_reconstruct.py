@@ -269,12 +269,13 @@ def _paper_layout_only(monkeypatch):
     monkeypatch.setattr(carbody.surface, "build_body", paper_only)
 
 
-def test_a_stiffer_refit_takes_the_marks_the_fit_kept(library, monkeypatch):
+def test_a_stiffer_refit_takes_the_marks_the_fit_kept(first_library, monkeypatch):
     """The pickup left out, from behind, its right lower tail corner clicked 4 px from the left
     one's: the fit leaves that mark out, and when the body has to come from a stiffer fit, that
     fit takes the marks the fit kept (given every mark, the paper's plain mix bent onto it and
     passed 134 px from the marks on average, and the report said nothing). The surface stage now
     surfaces that fit itself; it is made to refuse it as the paper's layout alone did."""
+    library = first_library
     import carbody
 
     name = "Ford F-150 SuperCrew 5.5 ft"
@@ -293,10 +294,11 @@ def test_a_stiffer_refit_takes_the_marks_the_fit_kept(library, monkeypatch):
     assert "left out as misplaced: rear_bottom_corner_right" in rec.summary(report)
 
 
-def test_a_wireframe_whose_region_folds_is_surfaced_as_fitted(library):
+def test_a_wireframe_whose_region_folds_is_surfaced_as_fitted(first_library):
     """The pickup left out of the library, seen from behind (165°): the default fit bends its cab
     until the window surround's outline crosses itself in its best-fit plane. That region is
     laid out by arc length, and the body comes from the fit itself: no stiffer refit."""
+    library = first_library
     import carbody
 
     name = "Ford F-150 SuperCrew 5.5 ft"
@@ -311,12 +313,13 @@ def test_a_wireframe_whose_region_folds_is_surfaced_as_fitted(library):
     assert window["layout"] == "arc_length" and "crosses itself" in window["layout_note"]
 
 
-def test_a_wireframe_that_cannot_be_surfaced_is_refitted_stiffer_and_said_so(library, monkeypatch):
+def test_a_wireframe_that_cannot_be_surfaced_is_refitted_stiffer_and_said_so(first_library, monkeypatch):
     """The same pickup, with the surface stage made to refuse a region the paper's layout cannot
     surface (as it did before the layout by arc length): the body then comes from a stiffer fit
     (the library's span without the local field) blended back toward the fit as far as it
     surfaces, consistent with the wireframe written, and the report and summary say so; the
     example needs none."""
+    library = first_library
     import carbody
 
     name = "Ford F-150 SuperCrew 5.5 ft"

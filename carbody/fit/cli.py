@@ -9,7 +9,10 @@ from carbody.fit.solve import METHODS
 
 
 def add_marks_argument(p: argparse.ArgumentParser) -> None:
-    """``--keep-marks`` and ``--view-weight``, shared by ``fit`` and ``reconstruct``."""
+    """``--keep-marks``, ``--view-weight`` and ``--force``, shared by ``fit`` and ``reconstruct``."""
+    p.add_argument("--force", action="store_true",
+                   help="give the car even when it explains the marks badly (by default such a fit "
+                        "exits 2 naming the marks, writing only its overlay and report)")
     p.add_argument("--keep-marks", action="store_true",
                    help="fit every mark as named: do not leave out marks the others say are "
                         "misplaced, nor read a mark left out under its left/right twin's name")
@@ -146,8 +149,9 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.camera import View, read_view
     from carbody.fit.keypoints_io import check_image_size, read_keypoints
     from carbody.fit.overlay import draw_overlay, write_image
-    from carbody.fit.report import build_report, draw_error_chart, fit_notes, write_json
+    from carbody.errors import FitRefused
     from carbody.fit.focal import focal_length_px
+    from carbody.fit.report import build_report, draw_error_chart, fit_notes, refusal_line, write_json
     from carbody.fit.options import FitOptions
     from carbody.fit.single_view import fit_wireframe
     from carbody.outputs import (JSON, PHOTO, PICTURE, STEP, check_distinct, check_not_inputs, check_output_file,
@@ -203,7 +207,19 @@ def run_fit(args: argparse.Namespace) -> int:
         # (the photo plane reads the photo again: only for a report that is written)
         report = build_report(result, truth, image=args.image if args.report else None)
 
+        refused = None if args.force else refusal_line(result)
+        report["refused"] = refused
         bar.start("write")
+        if refused:  # what shows why, and nothing that could be taken for a result
+            shown = {"--overlay": args.overlay, "--report": args.report}
+            # an earlier run's wireframe would be taken for this one's: it goes too
+            with staged((p for p in shown.values() if p is not None), remove=[p for p in (args.output, args.uncertainty, chart) if p]) as at:
+                if overlay is not None:
+                    write_image(at(args.overlay), overlay)
+                if args.report:
+                    write_json(at(args.report), report)
+            written = [str(p) for p in shown.values() if p is not None]
+            raise FitRefused(refused + (f"; wrote only {', '.join(written)}" if written else ""))
         with staged(p for p in outputs.values() if p is not None) as at:
             write_wireframe(at(args.output), result.wireframe, both_halves=True)
             if overlay is not None:

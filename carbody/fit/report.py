@@ -236,6 +236,26 @@ def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], renam
     return lines
 
 
+def refusal_line(result) -> str | None:
+    """One line saying why a fit is not to be given out, naming the marks the car passes
+    furthest from; None for a fit that explains its marks (``fits_poorly`` and ``misses_marks``
+    of :class:`~carbody.fit.diagnostics.FitDiagnostics` both false)."""
+    from carbody.fit.solve import keypoint_spread
+
+    diagnostics = result.diagnostics
+    if diagnostics is None or not (diagnostics.fits_poorly or diagnostics.misses_marks):
+        return None
+    residual = result.residuals_px()
+    mean = float(np.mean(list(residual.values())))
+    worst = sorted(residual, key=lambda n: -residual[n])[:3]
+    why = (f"no car fits the marks (−log evidence {diagnostics.evidence_per_coordinate:.0f} per coordinate, "
+           f"where a photo's own marks stay under 10)" if diagnostics.fits_poorly
+           else f"the fitted car misses the marks by {mean:.0f} px on average "
+                f"({100 * mean / keypoint_spread(result.uv):.0f} % of their spread)")
+    return (f"{why}; furthest: " + ", ".join(f"{n} ({residual[n]:.0f} px)" for n in worst)
+            + ": check those marks' names and places (--force gives the car anyway)")
+
+
 def poor_fit_line(evidence_per_coordinate: float, residual_px_mean: float) -> str:
     """One line for a person: no car near the view found fits the marks (the report's ``fits_poorly``)."""
     return (f"no car fits the marks (mean residual {residual_px_mean:.1f} px, −log evidence "
