@@ -257,7 +257,7 @@ def test_save_writes_the_projects_json_and_coco_on_request(server, tmp_path):
 def test_the_command_refuses_bad_input_in_one_line(tmp_path):
     for args, message in ((["annotate", str(tmp_path / "none.png"), "--no-browser"], "no such image"),
                           (["annotate", str(EXAMPLE), "-o", str(tmp_path / "m.txt"), "--no-browser"], ".json"),
-                          (["annotate", str(EXAMPLE), "-k", str(tmp_path / "none.json"), "--no-browser"], "cannot read"),
+                          (["annotate", str(EXAMPLE), "-k", str(tmp_path / "none.json"), "--no-browser"], "no such keypoint file"),
                           (["annotate", str(EXAMPLE), "--port", "70000", "--no-browser"], "port")):
         proc = run_cli(*args)
         assert proc.returncode == 2, (args, proc.stderr)

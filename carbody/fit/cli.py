@@ -12,7 +12,7 @@ def add_marks_argument(p: argparse.ArgumentParser) -> None:
     """``--keep-marks``, ``--view-weight`` and ``--force``, shared by ``fit`` and ``reconstruct``."""
     p.add_argument("--force", action="store_true",
                    help="give the car even when it explains the marks badly (by default such a fit "
-                        "exits 2 naming the marks, writing only its overlay and report)")
+                        "exits 2 naming the marks and writes only what shows why: overlay, report, summary)")
     p.add_argument("--keep-marks", action="store_true",
                    help="fit every mark as named: do not leave out marks the others say are "
                         "misplaced, nor read a mark left out under its left/right twin's name")
