@@ -14,7 +14,7 @@ beside its folder (``OUT/<photo>.run.json``; its output in ``OUT/<photo>.stdout.
 
     python benchmarks/bench_real_photos.py [--photos N | NAME ...] [--workers 1] [--out DIR]
                                            [--data DIR] [--json FILE] [--reuse] [--blas-threads N]
-                                           [--timeout S] [--no-sheet] [--no-outline]
+                                           [--timeout S] [--no-sheet] [--outline]
 
 Outcomes: ``body`` (exit 0 and a ``body.step``), ``refused`` (exit 2 with one line
 ``carbody reconstruct: error: ...`` and no traceback: the table shows the line), ``error``
@@ -183,7 +183,7 @@ def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S, blas_thread
     output folder, ``OUT/<photo>.run.json``) {exit_code, seconds (wall), cpu_seconds (the
     process's user + system time over its threads), stderr_tail, load_before, command,
     blas_threads}. Its stdout and stderr go to ``OUT/<photo>.stdout.txt`` / ``.stderr.txt``;
-    ``extra``: more arguments for ``carbody reconstruct`` (``--no-outline``).
+    ``extra``: more arguments for ``carbody reconstruct`` (``--outline``).
     ``blas_threads``: the numerical libraries' thread count set for the run (None: left as a
     user's environment has it)."""
     import threading
@@ -679,8 +679,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=TIMEOUT_S, help="seconds per reconstruct (an error after)")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows and summary as JSON here")
     ap.add_argument("--no-sheet", action="store_true", help="skip the contact sheet")
-    ap.add_argument("--no-outline", action="store_true",
-                    help="reconstruct with --no-outline: the marks alone, not the car's outline in the photo")
+    ap.add_argument("--outline", action="store_true",
+                    help="reconstruct with --outline: the car's outline in the photo fitted with the marks")
     args = ap.parse_args(argv)
 
     if not (args.data / "parts.json").exists():
@@ -694,7 +694,7 @@ def main(argv: list[str] | None = None) -> int:
         run = stored_run(photo, args.out) if args.reuse else None
         if run is None:
             run = run_photo(photo, args.out, args.timeout, args.blas_threads,
-                            ("--no-outline",) if args.no_outline else ())
+                            ("--outline",) if args.outline else ())
             print(f"{photo.name}: exit {run['exit_code']} in {run['seconds']:.1f} s", file=sys.stderr, flush=True)
         return run
 

@@ -274,7 +274,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
                 principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
                 name: str | None = None, library=None, reject_outliers: bool = True,
-                view_prior_weight: float = 1.0, outline: bool = True,
+                view_prior_weight: float = 1.0, outline: bool = False,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
 

@@ -92,7 +92,7 @@ def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) ->
                              elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
                              principal_point=args.principal_point, focal_35mm=args.focal_35mm,
                              reject_outliers=not args.keep_marks, view_prior_weight=args.view_weight,
-                             outline=not args.no_outline,
+                             outline=args.outline,
                              on_stage=on_stage)
         bar.update(1)
         bar.set_description("write")

@@ -75,7 +75,7 @@ def roof_height_error(fit, truth: np.ndarray) -> float:
 
 def test_outline_brings_the_roof_height_the_marks_leave_out_toward_the_truth(roofless):
     truth, photo, marks, library = roofless
-    options = FitOptions(refine=False, camera_distance_mm=None, deform=False)
+    options = FitOptions(refine=False, camera_distance_mm=None, deform=False, outline=True)
     alone = fit_wireframe(marks, VIEW, library, image_size=SIZE, options=options)
     outlined = fit_wireframe(marks, VIEW, library, image_size=SIZE, options=options, photo=photo)
     assert alone.outline is None
@@ -110,7 +110,7 @@ def test_a_garbage_mask_is_refused(garbage):
 
 def test_a_refused_outline_leaves_the_fit_to_the_marks(roofless):
     truth, photo, marks, library = roofless
-    options = FitOptions(refine=False, camera_distance_mm=None, deform=False)
+    options = FitOptions(refine=False, camera_distance_mm=None, deform=False, outline=True)
     mask = np.ones((400, 700), bool)  # the whole photo: background taken for the car
     usable, reason, ratio = check_segmentation(mask, 1e5, FIT_POLICY)
     assert not usable

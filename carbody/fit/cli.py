@@ -9,16 +9,16 @@ from carbody.fit.solve import METHODS
 
 
 def add_marks_argument(p: argparse.ArgumentParser) -> None:
-    """``--keep-marks``, ``--view-weight`` and ``--no-outline``, shared by ``fit`` and ``reconstruct``."""
+    """``--keep-marks``, ``--view-weight`` and ``--outline``, shared by ``fit`` and ``reconstruct``."""
     p.add_argument("--keep-marks", action="store_true",
                    help="fit every mark as named: do not leave out marks the others say are "
                         "misplaced, nor read a mark left out under its left/right twin's name")
     p.add_argument("--view-weight", type=float, default=1.0, metavar="W",
                    help="how strongly the view given (or the classifier's) counts in the search over "
                         "every view: a factor on its prior (default 1; 0: the marks alone decide)")
-    p.add_argument("--no-outline", action="store_true",
-                   help="fit the marks alone: do not cut the car out of the photo and fit its outline "
-                        "with them (docs/outline.md)")
+    p.add_argument("--outline", action=argparse.BooleanOptionalAction, default=False,
+                   help="also cut the car out of the photo and fit its outline with the marks "
+                        "(default off, --no-outline: the marks alone; docs/outline.md)")
 
 
 def add_camera_arguments(p: argparse.ArgumentParser) -> None:
@@ -192,7 +192,7 @@ def run_fit(args: argparse.Namespace) -> int:
     options = FitOptions(method=args.method, refine=not args.no_refine, deform=False if args.no_deform else None,
                          robust=not args.keep_marks, camera_distance_mm=distance,
                          principal_point=args.principal_point, focal_px=focal, check_orthographic=True,
-                         view_prior_weight=args.view_weight, outline=not args.no_outline)
+                         view_prior_weight=args.view_weight, outline=args.outline)
     result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                            options=options, name=args.name or Path(args.image).stem,
                            photo=image[..., ::-1] if options.outline else None)
