@@ -14,7 +14,7 @@ beside its folder (``OUT/<photo>.run.json``; its output in ``OUT/<photo>.stdout.
 
     python benchmarks/bench_real_photos.py [--photos N | NAME ...] [--workers 1] [--out DIR]
                                            [--data DIR] [--json FILE] [--reuse] [--blas-threads N]
-                                           [--timeout S] [--no-sheet]
+                                           [--timeout S] [--no-sheet] [--outline]
 
 Outcomes: ``body`` (exit 0 and a ``body.step``), ``refused`` (exit 2 with one line
 ``carbody reconstruct: error: ...`` and no traceback: the table shows the line), ``error``
@@ -177,11 +177,13 @@ def select(photos: list[Photo], wanted: list[str] | None) -> list[Photo]:
 
 # --- running ---------------------------------------------------------------------------------
 
-def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S, blas_threads: int | None = None) -> dict:
+def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S, blas_threads: int | None = None,
+              extra: tuple[str, ...] = ()) -> dict:
     """Reconstruct one photo in a fresh process, as a user would; returns (and stores beside the
     output folder, ``OUT/<photo>.run.json``) {exit_code, seconds (wall), cpu_seconds (the
     process's user + system time over its threads), stderr_tail, load_before, command,
-    blas_threads}. Its stdout and stderr go to ``OUT/<photo>.stdout.txt`` / ``.stderr.txt``.
+    blas_threads}. Its stdout and stderr go to ``OUT/<photo>.stdout.txt`` / ``.stderr.txt``;
+    ``extra``: more arguments for ``carbody reconstruct`` (``--outline``).
     ``blas_threads``: the numerical libraries' thread count set for the run (None: left as a
     user's environment has it)."""
     import threading
@@ -189,7 +191,7 @@ def run_photo(photo: Photo, out: Path, timeout_s: float = TIMEOUT_S, blas_thread
     folder = out / photo.name
     shutil.rmtree(folder, ignore_errors=True)  # no stale files survive a refusal
     cmd = [sys.executable, "-m", "carbody", "reconstruct", str(photo.image), "-k", str(photo.marks),
-           "-o", str(folder)]
+           "-o", str(folder), *extra]
     stdout_path, stderr_path = out / f"{photo.name}.stdout.txt", out / f"{photo.name}.stderr.txt"
     load = os.getloadavg()[0]
     with open(stdout_path, "w") as stdout, open(stderr_path, "w") as stderr:
@@ -677,6 +679,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=TIMEOUT_S, help="seconds per reconstruct (an error after)")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows and summary as JSON here")
     ap.add_argument("--no-sheet", action="store_true", help="skip the contact sheet")
+    ap.add_argument("--outline", action="store_true",
+                    help="reconstruct with --outline: the car's outline in the photo fitted with the marks")
     args = ap.parse_args(argv)
 
     if not (args.data / "parts.json").exists():
@@ -689,7 +693,8 @@ def main(argv: list[str] | None = None) -> int:
     def run_one(photo: Photo) -> dict:
         run = stored_run(photo, args.out) if args.reuse else None
         if run is None:
-            run = run_photo(photo, args.out, args.timeout, args.blas_threads)
+            run = run_photo(photo, args.out, args.timeout, args.blas_threads,
+                            ("--outline",) if args.outline else ())
             print(f"{photo.name}: exit {run['exit_code']} in {run['seconds']:.1f} s", file=sys.stderr, flush=True)
         return run
 

@@ -169,6 +169,50 @@ class FitPolicy:
     distance_passes: int = 3
     distance_agreement: float = 0.005
 
+    # ---- the car's outline in the photo (carbody.fit.outline)
+
+    #: The segmentation works on the photo scaled down to this many pixels on its longer side:
+    #: GrabCut's cost grows with the pixels, and a car's outline needs no more (≈ 0.2 s).
+    outline_working_px: int = 480
+    outline_iterations: int = 4
+
+    #: GrabCut's seeds, as factors on the marks' convex hull about its centre: surely car inside
+    #: ``outline_sure_shrink`` (the marks lie on the body), probably car inside
+    #: ``outline_probable_growth`` (bumpers, roof and wheels stand past the marks), probably
+    #: background inside ``outline_background_growth``, background beyond.
+    outline_sure_shrink: float = 0.7
+    outline_probable_growth: float = 1.15
+    outline_background_growth: float = 1.4
+
+    #: A mask is trusted when its area is within this range of the marks' hull's (the car
+    #: encloses its marks and not much more) and it runs along fewer than three sides of the
+    #: photo for more than this fraction of each (else it took the background).
+    outline_hull_ratio: tuple[float, float] = (0.9, 2.2)
+    outline_frame_fraction: float = 0.5
+
+    #: Points sampled inside each curve (its ends are junctions, often marks themselves); a point
+    #: is on the projected body's outline within this many pixels.
+    outline_samples_per_curve: int = 6
+    outline_on_px: float = 1.5
+
+    #: Outline points whose outward normal points further down than this (its image v component;
+    #: 0.5: 30° below sideways) are not used: the lower outline is tyres, shadow and ground.
+    outline_max_downward: float = 0.5
+
+    #: A point is matched to the mask's edge along its normal within this fraction of the marks'
+    #: spread (≈ 15 px for a car 900 px wide): further is another edge (a shadow, a kerb, the car
+    #: behind), not this car's outline where the marks put it.
+    outline_search_spread: float = 0.05
+
+    #: The matches' noise standard deviation as a multiple of the marks' (read off the marks):
+    #: a segmentation's edge is less sure than a person's click, and neighbouring matches share
+    #: their errors (a shadow, a reflection) so they count less than independent marks.
+    outline_noise_ratio: float = 3.0
+
+    #: Match–solve rounds at the view found, and the fewest matches the outline is used with.
+    outline_passes: int = 3
+    outline_min_points: int = 8
+
 
 #: The policy every fit uses unless told another.
 FIT_POLICY = FitPolicy()

@@ -9,7 +9,8 @@ from carbody.fit.solve import METHODS
 
 
 def add_marks_argument(p: argparse.ArgumentParser) -> None:
-    """``--keep-marks``, ``--view-weight`` and ``--force``, shared by ``fit`` and ``reconstruct``."""
+    """``--keep-marks``, ``--view-weight``, ``--outline`` and ``--force``, shared by ``fit`` and
+    ``reconstruct``."""
     p.add_argument("--force", action="store_true",
                    help="give the car even when it explains the marks badly (by default such a fit "
                         "exits 2 naming the marks and writes only what shows why: overlay, report, summary)")
@@ -19,6 +20,9 @@ def add_marks_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--view-weight", type=float, default=1.0, metavar="W",
                    help="how strongly the view given (or the classifier's) counts in the search over "
                         "every view: a factor on its prior (default 1; 0: the marks alone decide)")
+    p.add_argument("--outline", action=argparse.BooleanOptionalAction, default=False,
+                   help="also cut the car out of the photo and fit its outline with the marks "
+                        "(default off, --no-outline: the marks alone; docs/outline.md)")
 
 
 def add_camera_arguments(p: argparse.ArgumentParser) -> None:
@@ -200,9 +204,10 @@ def run_fit(args: argparse.Namespace) -> int:
         options = FitOptions(method=args.method, refine=not args.no_refine, deform=False if args.no_deform else None,
                              robust=not args.keep_marks, camera_distance_mm=distance,
                              principal_point=args.principal_point, focal_px=focal, check_orthographic=True,
-                             view_prior_weight=args.view_weight)
+                             view_prior_weight=args.view_weight, outline=args.outline)
         result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
-                               options=options, name=args.name or Path(args.image).stem)
+                               options=options, name=args.name or Path(args.image).stem,
+                               photo=image[..., ::-1] if options.outline else None)
         overlay = draw_overlay(image, result) if args.overlay else None
         # (the photo plane reads the photo again: only for a report that is written)
         report = build_report(result, truth, image=args.image if args.report else None)

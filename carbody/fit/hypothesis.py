@@ -178,9 +178,11 @@ class Scorer:
         facing = self._facing.facing(view.azimuth, view.elevation, self.policy.visibility_margin_deg)[:, 0]
         return ~facing[self._rows]
 
-    def solve(self, view: View, kept: np.ndarray, cheap: bool = False) -> MixSolution:
+    def solve(self, view: View, kept: np.ndarray, cheap: bool = False, outline=None) -> MixSolution:
         """The mix of the library that best explains the kept marks at ``view``, with its
-        evidence in the marks' pixels (``evidence_px``).
+        evidence in the marks' pixels (``evidence_px``); with ``outline``
+        (:class:`~carbody.fit.outline.OutlineTargets`, the Gaussian-prior methods), the car's
+        outline in the photo too.
 
         Raises:
             FitError: no car reproduces them at a positive image scale; AngleError: a pinhole
@@ -198,7 +200,8 @@ class Scorer:
             sol.evidence_px = sol.cost / (2 * lam) + 0.5 * m * np.log(2 * np.pi * lam) + m * np.log(rho)
             return sol
         sol = solve_gauss(self._cheap if cheap else self._model, load_topology().keypoint_point_indices, slots, uv,
-                          view, lam, mixture=self.options.method == "mixture", rounds=1 if cheap else 2)
+                          view, lam, mixture=self.options.method == "mixture", rounds=1 if cheap else 2,
+                          outline=outline)
         charge = implausibility(sol.shape, self.library, self.wheelbase_mm)
         sol.evidence += charge
         sol.evidence_px += charge

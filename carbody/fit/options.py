@@ -55,6 +55,10 @@ class FitOptions:
             camera close by fits far better (``diagnostics.closer_camera``).
         view_prior_weight: how strongly the given view (or the classifier's probabilities)
             counts in the search: a factor on its −log prior (0: not at all, the search alone).
+        outline: given the photo, fit the car's outline in it too, beside the marks
+            (:mod:`carbody.fit.outline`; the Gaussian-prior methods). Off by default: on the
+            real-photo benchmark it narrows the width and wheelbase errors but widens the
+            length's (docs/outline.md).
         policy: the thresholds (:class:`carbody.policy.FitPolicy`).
     """
 
@@ -69,6 +73,7 @@ class FitOptions:
     robust: bool = True
     check_orthographic: bool = False
     view_prior_weight: float = 1.0
+    outline: bool = False
     policy: FitPolicy = field(default=FIT_POLICY, repr=False)
 
     def __post_init__(self) -> None:

@@ -89,6 +89,9 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         "renamed_keypoints": dict(diagnostics.renamed),
         "swapped_keypoints": None if diagnostics.swapped is None else list(diagnostics.swapped),
         "deformation_mm_max": result.deformation_mm,
+        # the car's outline in the photo fitted with the marks: used or why not, how many outline
+        # points the last solve used, their median distance to the car's edge before and after
+        "outline": None if result.outline is None else result.outline.as_dict(),
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
         # the templates the fit mixed (fewer than 14 when some were excluded)

@@ -47,6 +47,8 @@ class FitResult:
         solve_residual_px: (k,) the marks' residuals before the deformation (None: no
             deformation, see ``solution.residual_px``).
         joint_field: whether the solve had the local displacement field in its prior.
+        outline: what the car's outline in the photo did to the fit
+            (:class:`~carbody.fit.outline.OutlineFit`), or None when it was not asked.
         diagnostics: what the fit says about the marks and the view
             (:class:`~carbody.fit.diagnostics.FitDiagnostics`: marks left out and why, names
             read exchanged, suspect marks, how well the car explains the marks, the search).
@@ -68,6 +70,7 @@ class FitResult:
     wheelbase_from: str = "library mix"
     solve_residual_px: np.ndarray | None = field(default=None, repr=False)
     joint_field: bool = True
+    outline: "OutlineFit | None" = None
     diagnostics: FitDiagnostics = field(default_factory=FitDiagnostics)
 
     @property

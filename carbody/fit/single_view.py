@@ -16,7 +16,9 @@ The algorithm, in :func:`fit_wireframe`:
    its twin's name — as discrete hypotheses of the same measure (:func:`~carbody.fit.robust.twin_exchanges`);
 4. correct the camera where that needs refits (:mod:`carbody.fit.fit_camera`): a told distance
    sizes the car, an off-centre car turns the camera toward it;
-5. build the car in mm, move it onto the marks (:mod:`carbody.fit.deform`) and say what the fit
+5. given the photo, fit the car's outline in it with the marks at the view found
+   (:mod:`carbody.fit.outline`): the shape between the marks from what the photo shows there;
+6. build the car in mm, move it onto the marks (:mod:`carbody.fit.deform`) and say what the fit
    found (:func:`~carbody.fit.diagnostics.diagnose`).
 """
 from __future__ import annotations
@@ -46,7 +48,8 @@ from carbody.wireframe import MIRROR, Wireframe
 def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float | str | ViewPrior | None = None,
                   library: Library | None = None, *, image_size: tuple[int, int] | None = None,
                   wheelbase_mm: float | None = None, options: FitOptions | None = None,
-                  name: str = "fitted car", **changes) -> FitResult:
+                  name: str = "fitted car", photo: "np.ndarray | CarOutline | None" = None,
+                  **changes) -> FitResult:
     """Fit the car's 3D wireframe to keypoints marked on one photo.
 
     Args:
@@ -61,6 +64,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             the car's width and height in mm); default the fitted mix of the templates' own.
         options: how to fit (:class:`FitOptions`); ``changes`` set its fields by keyword.
         name: the car's name (STEP product).
+        photo: the photo ((h, w, 3) uint8 RGB) or the car already cut out of it
+            (:class:`~carbody.fit.outline.CarOutline`): with ``options.outline``, the car's
+            outline is fitted with the marks (the Gaussian-prior methods).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
         AngleError: a view outside 0–360° or rolled past ±90°.
@@ -113,10 +119,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             if adapted is not scorer:
                 scorer, turn.hypothesis = adapted, polish(adapted, adapted.hypothesis(turn.hypothesis.view)
                                                           or turn.hypothesis, free=_polisher_free(options, plan))
+        outline_fit = None
+        if photo is not None and options.outline and options.method != "paper":
+            turn.hypothesis, outline_fit = _with_outline(scorer, turn, photo, uv, options)
         wheelbase, source = (wheelbase_mm, "told") if wheelbase_mm is not None else \
             (by_distance, "camera distance") if by_distance is not None else \
             (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
         result = _result(turn, photo_uv, prior, library, options, wheelbase, source, name)
+        result.outline = outline_fit
         if options.refine and result.solution.posterior is not None:
             result.solution.posterior.view_spread = view_spread(scorer, turn.hypothesis, ("azimuth", "elevation"))
         if options.deforms:
@@ -130,6 +140,15 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             closer = closer_camera(scorer, turn.hypothesis, car_centre(library_mean(library)))
         result.diagnostics = diagnose(result, scorer, turn.hypothesis, options.policy, searched, closer, photo_uv)
     return result
+
+
+def _with_outline(scorer: Scorer, turn: Turn, photo, marks_uv: np.ndarray, options: FitOptions):
+    """The found hypothesis fitted to the car's outline in the photo too (cut out here unless
+    given cut out), and what the outline did (:func:`~carbody.fit.outline.follow_outline`)."""
+    from carbody.fit.outline import CarOutline, follow_outline, segment_car
+
+    outline = photo if isinstance(photo, CarOutline) else segment_car(photo, marks_uv, options.policy)
+    return follow_outline(scorer, turn.hypothesis, outline, turn.to_photo)
 
 
 def _view_prior(view, options: FitOptions) -> ViewPrior:

@@ -396,24 +396,43 @@ def camera_rows(slots: list[KeypointSlot], view: View, keypoints: np.ndarray | N
     const = np.zeros(len(M))
     if view.distance is None:
         return M, const
+    sign = np.array([s.sign for s in slots])
+    kp = np.array([s.keypoint_id - 1 for s in slots])
+    grad, offset = point_camera(np.array([keypoints[s.keypoint_id - 1] * s.sign for s in slots]), view)
+    for axis in (0, 1):
+        M[axis::2] = 0.0
+        M[axis::2][np.arange(len(slots)), kp] = grad[:, axis] * sign
+        const[axis::2] = offset[:, axis]
+    return M, const
+
+
+def point_camera(points: np.ndarray, view: View) -> tuple[np.ndarray, np.ndarray]:
+    """The camera linearised at car-frame points (n, 3): image coordinates at scale 1 near
+    point i are grad[i]·p + const[i] (exact for an orthographic view).
+
+    Returns:
+        (grad (n, 2, 3) float, const (n, 2) float): u and v (down) rows.
+    """
+    rot = view_rotation(view)
+    pts = np.asarray(points, dtype=float)
+    grad = np.broadcast_to(np.stack([rot[1], -rot[2]]), (len(pts), 2, 3)).copy()
+    const = np.zeros((len(pts), 2))
+    if view.distance is None:
+        return grad, const
     from carbody.camera import camera_direction, perspective_factors
 
-    pts = np.array([keypoints[s.keypoint_id - 1] * s.sign for s in slots])
     # A stray intermediate shape may reach the camera; its evidence will tell, so clamp.
     k = perspective_factors(pts, view, max_factor=MAX_PERSPECTIVE_FACTOR)
-    rot, aim, d = view_rotation(view), np.asarray(view.aim, dtype=float), camera_direction(view)
+    aim, d = np.asarray(view.aim, dtype=float), camera_direction(view)
     # u(p) = aim·r + k(p)·(p − aim)·r with k(p) = D / (D − (p − aim)·d), so
     # ∂u/∂p = k·r + (k²/D)·((p − aim)·r)·d (zero slope where k is clamped); v likewise with −w.
     slope = np.where(k < MAX_PERSPECTIVE_FACTOR, k * k / view.distance, 0.0)
-    sign = np.array([s.sign for s in slots])
-    kp = np.array([s.keypoint_id - 1 for s in slots])
     for axis, row, flip in ((0, rot[1], 1.0), (1, rot[2], -1.0)):
         offset = (pts - aim) @ row
-        grad = k[:, None] * row + (slope * offset)[:, None] * d  # (k, 3) with respect to p
-        M[axis::2] = 0.0
-        M[axis::2][np.arange(len(slots)), kp] = flip * grad * sign
-        const[axis::2] = flip * (aim @ row + k * offset - np.einsum("ij,ij->i", grad, pts))
-    return M, const
+        g = k[:, None] * row + (slope * offset)[:, None] * d  # (n, 3) with respect to p
+        grad[:, axis] = flip * g
+        const[:, axis] = flip * (aim @ row + k * offset - np.einsum("ij,ij->i", g, pts))
+    return grad, const
 
 
 def _centred(slots: list[KeypointSlot], uv: np.ndarray, view: View, keypoints: np.ndarray | None = None):
@@ -499,7 +518,8 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
 
 def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[KeypointSlot],
                 uv: np.ndarray, view: View, prior_weight: float = DEFAULT_PRIOR_WEIGHT,
-                mixture: bool = False, rounds: int = PERSPECTIVE_ITERATIONS) -> MixSolution:
+                mixture: bool = False, rounds: int = PERSPECTIVE_ITERATIONS,
+                outline: "OutlineTargets | None" = None) -> MixSolution:
     """MAP shape under the library's Gaussian shape prior, with the image's scale and offset.
 
     Args:
@@ -510,6 +530,10 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         mixture: a mixture prior, one Gaussian (the library's covariance) around each template's
             mean, combined by their posterior weights (``"mixture"`` method).
         rounds: a pinhole view's Newton rounds (below).
+        outline: points of the curves matched to the car's outline in the photo
+            (:class:`carbody.fit.outline.OutlineTargets`), pseudo-observations of their own
+            noise: each pins its point's projection along the outline's normal. The image
+            offset stays the marks' (the outline rows are centred on the marks' mean).
 
     A pinhole view (``view.distance``) is aimed at the car's centre and solved by Newton rounds:
     linearise the camera and set the aim at the current shape, solve, repeat
@@ -524,8 +548,8 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     for _ in range(1 if view.distance is None else rounds):
         if view.distance is not None:
             view = replace(view, aim=car_centre(shape))
-        sol = _solve_gauss_linear(model, mk, Bk, point_indices, slots, uv, view,
-                                  shape.reshape(-1, 3)[point_indices], prior_weight, mixture)
+        sol = _solve_gauss_linear(model, mk, Bk, point_indices, slots, uv, view, shape, prior_weight, mixture,
+                                  outline)
         shape = sol.shape
     sol.view = view
     return sol
@@ -540,11 +564,18 @@ def car_centre(shape: np.ndarray) -> tuple[float, float, float]:
 
 def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point_indices: np.ndarray,
                         slots: list[KeypointSlot], uv: np.ndarray, view: View, guess: np.ndarray,
-                        prior_weight: float, mixture: bool) -> MixSolution:
-    """:func:`solve_gauss` with the camera linearised at ``guess`` (35, 3)."""
-    M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, guess)
+                        prior_weight: float, mixture: bool, outline=None) -> MixSolution:
+    """:func:`solve_gauss` with the camera linearised at the shape ``guess`` (840,)."""
+    M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, guess.reshape(-1, 3)[point_indices])
     AB = (Mc @ Bk) / model.size
     am = (Mc @ mk + cc) / model.size
+    marks_rows = len(b)
+    if outline is not None and len(outline):
+        L, c, target = _outline_rows(outline, M, const, z, view, guess, point_indices)
+        w = 1.0 / outline.noise_ratio
+        AB = np.vstack([AB, w * (L @ model.basis) / model.size])
+        am = np.concatenate([am, w * (L @ model.mean + c) / model.size])
+        b = np.concatenate([b, w * target / rho])
     if mixture and model.group_means is not None:
         # One Gaussian per template centre, shared covariance; the posterior mean of the mixture.
         deltas, gs, _, nle, (V, e) = _map_coefficients(am + model.group_means @ AB.T, AB, b, prior_weight)
@@ -567,7 +598,7 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
     shape = model.mean + model.basis @ a
     scale = g * rho / model.size
     offset, pred = _image_fit(M, shape.reshape(-1, 3)[point_indices], z, scale, const)
-    rvec = np.concatenate([((pred - z) / rho).ravel(), prior_part])
+    rvec = np.concatenate([((pred - z) / rho).ravel(), prior_part])  # the marks' (and the prior's)
     # the centred image has 2k − 2 free rows
     posterior.inflation = max(1.0, float(rvec @ rvec) / (prior_weight * max(2 * len(z) - 2, 1)))
     m = 2 * len(z) - 2
@@ -575,7 +606,31 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
                        residual_px=np.linalg.norm(pred - z, axis=1), cost=float(rvec @ rvec),
                        residual_vector=rvec, evidence=evidence, posterior=posterior,
                        evidence_px=evidence + 0.5 * m * np.log(2.0 * np.pi * prior_weight) + m * np.log(rho),
-                       leverage=_leverage(AB @ V, e, g, prior_weight, len(z)), rho=rho)
+                       leverage=_leverage(AB[:marks_rows] @ V, e, g, prior_weight, len(z)), rho=rho)
+
+
+def _outline_rows(outline, M: np.ndarray, const: np.ndarray, z: np.ndarray, view: View, guess: np.ndarray,
+                  point_indices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The outline's pseudo-observations as rows of the centred solve: each matched point's
+    projection along its normal, less the marks' mean projection (the image offset is the
+    marks'), as a linear function L·shape + c (scale 1) of the (840,) shape vector, and its
+    target n·(edge − the marks' mean), px.
+
+    Args:
+        M, const: the marks' camera rows (:func:`camera_rows`); z: (k, 2) their pixels.
+        guess: (840,) the shape a pinhole camera is linearised at.
+    """
+    grad, offset = point_camera(outline.points(guess), view)  # (n, 2, 3), (n, 2)
+    n = outline.normals
+    along = np.einsum("na,nac->nc", n, grad) * outline.mirror  # (n, 3): d(n·uv)/d(control point)
+    L = (outline.weights[:, :, None] * along[:, None, :]).reshape(len(n), -1)
+    marks_mean = np.stack([M[0::2].mean(axis=0), M[1::2].mean(axis=0)])  # (2, 35, 3)
+    centre = np.einsum("na,akc->nkc", n, marks_mean)
+    rows = L.reshape(len(n), -1, 3)
+    rows[:, point_indices] -= centre  # (each keypoint is its own control point)
+    c = np.einsum("na,na->n", n, offset) - n @ np.array([const[0::2].mean(), const[1::2].mean()])
+    target = np.einsum("na,na->n", n, outline.targets - z.mean(axis=0))
+    return rows.reshape(len(n), -1), c, target
 
 
 def _leverage(ABV: np.ndarray, e: np.ndarray, g: float, lam: float, k: int) -> np.ndarray:
