@@ -134,6 +134,15 @@ class FitPolicy:
     #: fraction of their spread, whatever the method: a car no better than a guess.
     misses_marks_spread: float = 0.05
 
+    #: A fit is refused (``contradicts``: exit 2 unless forced) only where the marks contradict
+    #: each other, far past both notes: −log evidence per coordinate above this (the
+    #: leave-one-out cars' other end scores ≥ 34.9, their own view ≤ 6.1 at 5 px of noise) ...
+    refuse_evidence: float = 25.0
+    #: ... or a mean residual above this fraction of the marks' spread (three times the
+    #: ``misses_marks`` note's: a car the library lacks misses its marks by a few per cent, a
+    #: contradiction by tens).
+    refuse_misses_spread: float = 0.15
+
     # ---- the camera (carbody.fit.fit_camera)
 
     #: Told the orthographic camera, a camera close by "fits far better" when its mean residual

@@ -50,6 +50,8 @@ class FitDiagnostics:
         evidence_per_coordinate: −log evidence per marked coordinate (None: the paper's solve).
         fits_poorly: above ``poor_fit_evidence``: no car near the view found explains the marks.
         misses_marks: the car's mean residual exceeds ``misses_marks_spread`` of the marks' spread.
+        contradicts: far past both (``refuse_evidence``, ``refuse_misses_spread``): the marks
+            contradict each other, and the fit is not given out unless forced.
         view_search: what the search saw: the prior, the views scanned and how many of them see
             the marks (``hypotheses``), the best few distinct ones scanned ({azimuth_deg,
             elevation_deg, perspective, score_nats}), the margin (nats) of the best over the next
@@ -66,6 +68,7 @@ class FitDiagnostics:
     evidence_per_coordinate: float | None = None
     fits_poorly: bool = False
     misses_marks: bool = False
+    contradicts: bool = False
     view_search: dict | None = None
     closer_camera: dict | None = None
     solves: int = 0
@@ -122,6 +125,8 @@ def diagnose(result, scorer, hypothesis, policy: FitPolicy, view_search: dict | 
         evidence_per_coordinate=per_coordinate,
         fits_poorly=per_coordinate is not None and per_coordinate > policy.poor_fit_evidence,
         misses_marks=bool(values.mean() > policy.misses_marks_spread * spread),
+        contradicts=bool((per_coordinate is not None and per_coordinate > policy.refuse_evidence)
+                         or values.mean() > policy.refuse_misses_spread * spread),
         view_search=view_search, closer_camera=closer_camera, solves=scorer.solves)
 
 

@@ -241,18 +241,21 @@ def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], renam
 
 def refusal_line(result) -> str | None:
     """One line saying why a fit is not to be given out, naming the marks the car passes
-    furthest from; None for a fit that explains its marks (``fits_poorly`` and ``misses_marks``
-    of :class:`~carbody.fit.diagnostics.FitDiagnostics` both false)."""
+    furthest from; None unless the marks contradict each other (``contradicts`` of
+    :class:`~carbody.fit.diagnostics.FitDiagnostics`: a fit that merely fits poorly, a car the
+    library lacks, is given out with a note)."""
     from carbody.fit.solve import keypoint_spread
+    from carbody.policy import FIT_POLICY
 
     diagnostics = result.diagnostics
-    if diagnostics is None or not (diagnostics.fits_poorly or diagnostics.misses_marks):
+    if diagnostics is None or not diagnostics.contradicts:
         return None
     residual = result.residuals_px()
     mean = float(np.mean(list(residual.values())))
     worst = sorted(residual, key=lambda n: -residual[n])[:3]
-    why = (f"no car fits the marks (−log evidence {diagnostics.evidence_per_coordinate:.0f} per coordinate, "
-           f"where a photo's own marks stay under 10)" if diagnostics.fits_poorly
+    evidence = diagnostics.evidence_per_coordinate
+    why = (f"the marks contradict each other: no car fits them (−log evidence {evidence:.0f} per coordinate, "
+           f"where a photo's own marks stay under 10)" if evidence is not None and evidence > FIT_POLICY.refuse_evidence
            else f"the fitted car misses the marks by {mean:.0f} px on average "
                 f"({100 * mean / keypoint_spread(result.uv):.0f} % of their spread)")
     return (f"{why}; furthest: " + ", ".join(f"{n} ({residual[n]:.0f} px)" for n in worst)
