@@ -12,7 +12,7 @@ Every worker runs one task at a time (one thread: the work is numpy, OCCT and VT
 worth each) and gets :class:`CarbodyWorker`, which pins one BLAS/OpenMP/torch thread (two
 workers on two cores would otherwise oversubscribe them) and loads, once, what every photo
 needs into the module-level caches the public API already reads
-(:func:`carbody.library.default_library`, :func:`carbody.view.predict.load_classifier`), so a
+(:func:`carbody.library.default_library`, :func:`carbody.view.numpy_net.load_numpy_classifier`), so a
 photo's task stays a plain call of :func:`carbody.reconstruct`.
 
 The workers read the inputs and write the outputs themselves, so on a cluster of several
@@ -36,7 +36,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from carbody.errors import BatchError
 
-#: What :func:`warm_up` can load: the model library, the view classifier (torch), and the
+#: What :func:`warm_up` can load: the model library, the view classifier (numpy), and the
 #: kernel (OCP for the surfaces and STEP, VTK for the pictures), whose imports take seconds.
 WARM_PARTS = ("library", "classifier", "kernel")
 
@@ -72,12 +72,9 @@ def warm_up(parts: tuple[str, ...] = WARM_PARTS) -> dict[str, float]:
 
             default_library()
         elif part == "classifier":
-            import torch
+            from carbody.view.numpy_net import load_numpy_classifier
 
-            from carbody.view.predict import load_classifier
-
-            torch.set_num_threads(1)
-            load_classifier()
+            load_numpy_classifier()
         elif part == "kernel":
             import cadquery  # noqa: F401  (the assembly writer; imports OCP)
             import vtkmodules.vtkRenderingCore  # noqa: F401

@@ -233,12 +233,20 @@ def _load_classifier(path_text: str, mtime_ns: int):  # mtime_ns: cache key only
 
 def predict_probabilities(images: list | np.ndarray, weights: str | Path | None = None,
                           mirror_average: bool = True) -> np.ndarray:
-    """(B, 24) class probabilities of a batch of pictures (paths or arrays)."""
-    import torch
-
-    from carbody.view.train import to_square_input, to_tensor
+    """(B, 24) class probabilities of a batch of pictures (paths or arrays): through the numpy
+    network (:mod:`carbody.view.numpy_net`, no torch to import) for the shipped weights or an
+    ``.npz``, through torch for a ``.pt`` file."""
+    from carbody.view.numpy_net import numpy_weights_for, probabilities
+    from carbody.view.train import to_square_input
 
     x = np.stack([to_square_input(read_image(im)) for im in images])   # bad input first
+    npz = numpy_weights_for(weights)
+    if npz is not None:
+        return probabilities(x, npz, mirror_average)
+    import torch
+
+    from carbody.view.train import to_tensor
+
     model, _ = load_classifier(str(weights) if weights else None)
     n = len(x)
     if mirror_average:          # one forward pass over the pictures and their mirror images
