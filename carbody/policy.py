@@ -109,8 +109,9 @@ class FitPolicy:
     scan_rejections: int = 1
 
     #: Discrete hypotheses on the names of marks left out (a left/right pair exchanged, a mark
-    #: clicked under its twin's name), at most this many, each kept when it explains the marks
-    #: better by this many nats: a name is changed only when the marks say so clearly.
+    #: clicked under its twin's name; on a poor fit every pair marked whole), each scored at the
+    #: view found, the best this many refined, one kept when it explains the marks better by this
+    #: many nats: a name is changed only when the marks say so clearly.
     twin_hypotheses: int = 4
     twin_margin_nats: float = 10.0
 

@@ -113,15 +113,20 @@ def twin_name(name: str) -> str:
 
 
 def twin_renames(hypothesis, policy: FitPolicy) -> list[dict[str, str]]:
-    """The discrete hypotheses the marks a hypothesis leaves out suggest, at most
-    ``twin_hypotheses``: for a mark left out (misplaced or hidden) whose twin is marked too, the
-    pair's names exchanged; whose twin is not marked, the mark read under the twin's name.
-    Marks on the symmetry plane have no twin."""
+    """The discrete hypotheses the marks suggest, at most ``twin_hypotheses``: for a mark left
+    out (misplaced or hidden) whose twin is marked too, the pair's names exchanged; whose twin is
+    not marked, the mark read under the twin's name. When the marks kept are explained poorly
+    (−log evidence per coordinate above ``poor_fit_evidence``) and none left out says which, the
+    pairs marked whole whose marks the car misses most are tried exchanged too: straight from
+    the front or rear an exchanged pair is a mirror image of itself, so no single mark of it
+    stands out enough to be left out.
+    """
     from carbody.fit.keypoints_io import keypoint_slots
 
     names = hypothesis.marks.names
     named = keypoint_slots()
     out: list[dict[str, str]] = []
+
     for name, kept in zip(names, hypothesis.kept):
         twin = twin_name(name)
         if kept or twin not in named:
@@ -129,25 +134,34 @@ def twin_renames(hypothesis, policy: FitPolicy) -> list[dict[str, str]]:
         change = {name: twin, twin: name} if twin in names else {name: twin}
         if change not in out:
             out.append(change)
-        if len(out) == policy.twin_hypotheses:
-            break
-    return out
+    solution = hypothesis.solution
+    kept_names = [n for n, k in zip(names, hypothesis.kept) if k]
+    if solution.evidence is None or solution.evidence / (2 * len(kept_names)) <= policy.poor_fit_evidence:
+        return out
+    residual = dict(zip(kept_names, np.asarray(solution.residual_px, dtype=float)))
+    pairs = sorted((n for n in residual if not n.endswith(RIGHT_SUFFIX) and twin_name(n) in residual),
+                   key=lambda n: -(residual[n] + residual[twin_name(n)]))
+    changes = [{n: twin_name(n), twin_name(n): n} for n in pairs]
+    return out + [c for c in changes if c not in out]
 
 
 def twin_exchanges(scorer, hypothesis, refine):
     """The hypothesis, or one with a twin exchange (:func:`twin_renames`) that scores better by
-    ``twin_margin_nats``; each tried at the hypothesis' view and refined there
-    (``refine(scorer, hypothesis)``: a short local search, as the names can move the view).
+    ``twin_margin_nats``: each scored at the hypothesis' view (one solve), the best
+    ``twin_hypotheses`` of them refined there (``refine(scorer, hypothesis)``: a short local
+    search, as the names can move the view).
 
     Returns:
         (the hypothesis kept, the scorer of its marks).
     """
-    best, best_scorer = hypothesis, scorer
+    trials = []
     for change in twin_renames(hypothesis, scorer.policy):
         other = scorer.with_marks(hypothesis.marks.renamed(change))
         trial = other.hypothesis(hypothesis.view)
-        if trial is None:
-            continue
+        if trial is not None:
+            trials.append((trial.score, len(trials), change, other, trial))
+    best, best_scorer = hypothesis, scorer
+    for _, _, change, other, trial in sorted(trials, key=lambda t: t[:2])[:scorer.policy.twin_hypotheses]:
         trial = refine(other, trial) or trial
         trial.renamed = change
         if trial.score < best.score - scorer.policy.twin_margin_nats:
