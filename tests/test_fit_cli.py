@@ -280,7 +280,7 @@ def test_any_view_given_lands_on_the_photo_s_and_marks_no_view_fits_are_said_to_
                        "-o", str(out), "--report", str(tmp_path / "r.json"))
         assert proc.returncode == (2 if poor else 0) and out.exists() is not poor, proc.stderr
         rep = json.loads((tmp_path / "r.json").read_text())
-        assert rep["fits_poorly"] is poor and ("no car fits the marks" in proc.stderr) is poor
+        assert rep["fits_poorly"] is poor and ("contradict each other" in proc.stderr) is poor
         assert (rep["evidence_per_coordinate"] > FIT_POLICY.poor_fit_evidence) is poor
         assert poor or (abs(rep["refined_view"]["azimuth_deg"] - 30) < 2 and not rep["rejected_keypoints"])
     proc = run_cli("fit", str(REPO / "examples" / "car.png"), "--keypoints", str(REPO / "examples" / "car_keypoints.json"),

@@ -31,7 +31,7 @@ def test_a_reconstruct_whose_fit_misses_the_marks_exits_2_and_writes_why(tmp_pat
                    "-o", str(out), "--quiet")
     assert proc.returncode == 2, proc.stderr
     line, = proc.stderr.strip().splitlines()
-    assert "no car fits the marks" in line or "misses the marks" in line
+    assert "contradict each other" in line or "misses the marks" in line
     assert "furthest:" in line and "--force" in line and "overlay.png" in line
     assert sorted(p.name for p in out.iterdir()) == ["overlay.png", "report.json", "summary.txt"]
     report = json.loads((out / "report.json").read_text())
