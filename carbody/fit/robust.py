@@ -112,6 +112,13 @@ def twin_name(name: str) -> str:
     return name.removesuffix(RIGHT_SUFFIX) if name.endswith(RIGHT_SUFFIX) else name + RIGHT_SUFFIX
 
 
+def explains_poorly(hypothesis, policy: FitPolicy) -> bool:
+    """The marks a hypothesis keeps are explained poorly: −log evidence per coordinate above
+    ``poor_fit_evidence`` (never for the paper's solve, which has no evidence)."""
+    evidence = hypothesis.solution.evidence
+    return evidence is not None and evidence / (2 * int(hypothesis.kept.sum())) > policy.poor_fit_evidence
+
+
 def twin_renames(hypothesis, policy: FitPolicy) -> list[dict[str, str]]:
     """The discrete hypotheses the marks suggest, at most ``twin_hypotheses``: for a mark left
     out (misplaced or hidden) whose twin is marked too, the pair's names exchanged; whose twin is
@@ -134,26 +141,42 @@ def twin_renames(hypothesis, policy: FitPolicy) -> list[dict[str, str]]:
         change = {name: twin, twin: name} if twin in names else {name: twin}
         if change not in out:
             out.append(change)
-    solution = hypothesis.solution
-    kept_names = [n for n, k in zip(names, hypothesis.kept) if k]
-    if solution.evidence is None or solution.evidence / (2 * len(kept_names)) <= policy.poor_fit_evidence:
+    if not explains_poorly(hypothesis, policy):
         return out
-    residual = dict(zip(kept_names, np.asarray(solution.residual_px, dtype=float)))
+    kept_names = [n for n, k in zip(names, hypothesis.kept) if k]
+    residual = dict(zip(kept_names, np.asarray(hypothesis.solution.residual_px, dtype=float)))
     pairs = sorted((n for n in residual if not n.endswith(RIGHT_SUFFIX) and twin_name(n) in residual),
                    key=lambda n: -(residual[n] + residual[twin_name(n)]))
     changes = [{n: twin_name(n), twin_name(n): n} for n in pairs]
     return out + [c for c in changes if c not in out]
 
 
-def twin_exchanges(scorer, hypothesis, refine):
+def twin_exchanges(scorer, hypothesis, refine, alternatives=()):
     """The hypothesis, or one with a twin exchange (:func:`twin_renames`) that scores better by
     ``twin_margin_nats``: each scored at the hypothesis' view (one solve), the best
     ``twin_hypotheses`` of them refined there (``refine(scorer, hypothesis)``: a short local
-    search, as the names can move the view).
+    search, as the names can move the view). When the best so far explains the marks poorly,
+    the exchanges are tried at the search's other candidate views (``alternatives``) too: an
+    exchanged pair can make a wrong view look best.
 
     Returns:
         (the hypothesis kept, the scorer of its marks).
     """
+    best, best_scorer = _exchanged(scorer, hypothesis, refine)
+    for start in alternatives:
+        if not explains_poorly(best, scorer.policy):
+            break
+        other = scorer.hypothesis(start.view)
+        if other is None:
+            continue
+        trial, trial_scorer = _exchanged(scorer, other, refine)
+        if trial.renamed and trial.score < best.score - scorer.policy.twin_margin_nats:
+            best, best_scorer = trial, trial_scorer
+    return best, best_scorer
+
+
+def _exchanged(scorer, hypothesis, refine):
+    """:func:`twin_exchanges` at one hypothesis' view."""
     trials = []
     for change in twin_renames(hypothesis, scorer.policy):
         other = scorer.with_marks(hypothesis.marks.renamed(change))

@@ -36,12 +36,13 @@ from carbody.fit.keypoints_io import check_keypoints
 from carbody.fit.options import FitOptions, check_wheelbase
 from carbody.fit.result import FitResult
 from carbody.fit.robust import marks_noise, twin_exchanges
-from carbody.fit.search import refine, search_views, view_spread
+from carbody.fit.search import distinct, refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.view_prior import ViewPrior
 from carbody.library import Library, check_library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
+from carbody.view.labels import angular_difference
 from carbody.wireframe import MIRROR, Wireframe
 
 
@@ -98,10 +99,17 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         cameras = [replace(c, roll=prior.roll_deg) for c in cameras]
         # (an off-centre car's obliquity reads as noise until the camera is turned to it)
         turns = plan.principal is not None and plan.distance is not None
-        hypothesis, searched, scorer = _located(scorer, cameras, search_plan, prior, options,
-                                                adapt=options.robust_marks and not turns)
+        hypothesis, searched, scorer, alternatives = _located(scorer, cameras, search_plan, prior, options,
+                                                              adapt=options.robust_marks and not turns)
         polish = _polisher(options, search_plan)
-        hypothesis, scorer = twin_exchanges(scorer, hypothesis, polish)
+        hypothesis, scorer = twin_exchanges(scorer, hypothesis, polish, alternatives)
+        if hypothesis.renamed and options.refine:
+            # the names exchanged, the marks are other marks: the view is searched again for them
+            again, searched_again, renamed_scorer, _ = _located(scorer, cameras, search_plan, prior, options,
+                                                                adapt=options.robust_marks and not turns)
+            if again.score < hypothesis.score:
+                again.renamed = hypothesis.renamed
+                hypothesis, searched, scorer = again, searched_again, renamed_scorer
         by_distance = None
         if sizes_by_distance:
             hypothesis, by_distance = size_from_told_distance(
@@ -169,14 +177,17 @@ def _view_prior(view, options: FitOptions) -> ViewPrior:
 
 
 def _located(scorer: Scorer, cameras: list[View], plan: CameraPlan, prior: ViewPrior,
-             options: FitOptions, adapt: bool) -> tuple[Hypothesis, dict | None, Scorer]:
+             options: FitOptions, adapt: bool) -> tuple[Hypothesis, dict | None, Scorer, list[Hypothesis]]:
     """The best hypothesis: searched round the car (and what the search saw), or at the view
-    kept as given (its distance still found when asked); and its scorer, at the marks' own
-    noise (:func:`_at_marks_noise`) when ``adapt``."""
+    kept as given (its distance still found when asked); its scorer, at the marks' own noise
+    (:func:`_at_marks_noise`) when ``adapt``; and the search's other candidate views."""
     adapt = _at_marks_noise if adapt else None
     if options.refine:
         best, scanned, scorer = search_views(scorer, cameras, plan.finds_perspective, adapt)
-        return best, _search_summary(scanned, best, prior, scorer, len(cameras)), scorer
+        policy = options.policy
+        others = [h for h in distinct(scanned, policy.refined_candidates + 1, policy.candidate_separation_deg)
+                  if angular_difference(h.view.azimuth, best.view.azimuth) > policy.candidate_separation_deg]
+        return best, _search_summary(scanned, best, prior, scorer, len(cameras)), scorer, others
     start = prior.start
     kept = [scorer.hypothesis(View(start.azimuth, start.elevation, start.roll, c.distance, c.aim)) for c in cameras]
     kept = [h for h in kept if h is not None]
@@ -190,7 +201,7 @@ def _located(scorer: Scorer, cameras: list[View], plan: CameraPlan, prior: ViewP
             scorer, best = adapted, adapted.hypothesis(best.view) or best
     if plan.finds_perspective:
         best = _polisher(options, plan)(scorer, best)
-    return best, None, scorer
+    return best, None, scorer, []
 
 
 def _at_marks_noise(scorer: Scorer, hypothesis: Hypothesis) -> Scorer:
