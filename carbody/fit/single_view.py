@@ -35,7 +35,7 @@ from carbody.fit.hypothesis import Hypothesis, Marks, Scorer
 from carbody.fit.keypoints_io import check_keypoints
 from carbody.fit.options import FitOptions, check_wheelbase
 from carbody.fit.result import FitResult
-from carbody.fit.robust import marks_noise, twin_exchanges
+from carbody.fit.robust import explains_poorly, marks_noise, twin_exchanges
 from carbody.fit.search import distinct, refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.view_prior import ViewPrior
@@ -103,8 +103,10 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
                                                               adapt=options.robust_marks and not turns)
         polish = _polisher(options, search_plan)
         hypothesis, scorer = twin_exchanges(scorer, hypothesis, polish, alternatives)
-        if hypothesis.renamed and options.refine:
-            # the names exchanged, the marks are other marks: the view is searched again for them
+        unsettled = not hypothesis.kept.all() or explains_poorly(hypothesis, options.policy)
+        if hypothesis.renamed and options.refine and unsettled:
+            # the names exchanged, the marks are other marks; where the view found for the names
+            # clicked still leaves marks out (or fits poorly), it is searched again for them
             again, searched_again, renamed_scorer, _ = _located(scorer, cameras, search_plan, prior, options,
                                                                 adapt=options.robust_marks and not turns)
             if again.score < hypothesis.score:
