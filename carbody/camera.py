@@ -125,7 +125,7 @@ def eq1_angles(view: View) -> tuple[float, float, float]:
 
 
 def project(points: np.ndarray, view: View, scale: float = 1.0,
-            offset: tuple[float, float] | np.ndarray = (0.0, 0.0)) -> np.ndarray:
+            offset: tuple[float, float] | np.ndarray = (0.0, 0.0), max_factor: float | None = None) -> np.ndarray:
     """Image coordinates of car-frame points.
 
     Args:
@@ -133,6 +133,8 @@ def project(points: np.ndarray, view: View, scale: float = 1.0,
         view: the camera.
         scale: pixels per length unit, s.
         offset: (u0, v0) pixels, image position of the car-frame origin.
+        max_factor: a pinhole's perspective factor clamped to this (:func:`perspective_factors`)
+            instead of refusing a point at or behind the camera.
     Returns:
         (..., 2) float, pixels (u right, v down).
     """
@@ -140,7 +142,7 @@ def project(points: np.ndarray, view: View, scale: float = 1.0,
     p = np.asarray(points, dtype=float)
     if view.distance is not None:
         aim = np.asarray(view.aim, dtype=float)
-        p = aim + (p - aim) * perspective_factors(p, view)[..., None]
+        p = aim + (p - aim) * perspective_factors(p, view, max_factor)[..., None]
     u = offset[0] + scale * (p @ rot[1])
     v = offset[1] - scale * (p @ rot[2])
     return np.stack([u, v], axis=-1)

@@ -44,7 +44,12 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
 
     res = result.residuals_px()
     diagnostics = result.diagnostics
-    visible = visible_keypoints(result.view.scaled(result.mm_per_unit), result.wireframe.control_points)
+    from carbody.errors import AngleError
+
+    try:
+        visible = visible_keypoints(result.view.scaled(result.mm_per_unit), result.wireframe.control_points)
+    except AngleError:  # a car bent by marks that contradict each other round the camera: none known
+        visible = [s.name for s in result.slots]
     report = {
         "method": result.method,
         "given_view": None if result.given_view is None else result.given_view.as_dict(),

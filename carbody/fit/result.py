@@ -158,9 +158,13 @@ class FitResult:
         return self.uv if self.to_photo is None else apply_homography(np.linalg.inv(self.to_photo), self.uv)
 
     def project_points(self, points_mm: np.ndarray) -> np.ndarray:
-        """(..., 2) pixels of car-frame points (mm) under the fitted camera."""
+        """(..., 2) pixels of car-frame points (mm) under the fitted camera (a point at or behind
+        a pinhole camera, as a car bent by marks that contradict each other can have, far off
+        the photo: its perspective factor clamped as the solve clamps it)."""
+        from carbody.fit.solve import MAX_PERSPECTIVE_FACTOR
+
         uv = project(np.asarray(points_mm) / self.mm_per_unit, self.view, self.solution.scale,
-                     self.solution.offset)
+                     self.solution.offset, max_factor=MAX_PERSPECTIVE_FACTOR)
         return uv if self.to_photo is None else apply_homography(self.to_photo, uv)
 
     def top_weights(self, n: int = 10) -> list[dict]:

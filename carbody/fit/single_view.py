@@ -102,7 +102,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         hypothesis, searched, scorer, alternatives = _located(scorer, cameras, search_plan, prior, options,
                                                               adapt=options.robust_marks and not turns)
         polish = _polisher(options, search_plan)
-        hypothesis, scorer = twin_exchanges(scorer, hypothesis, polish, alternatives)
+        if options.robust_marks:  # (every mark fitted as named otherwise)
+            hypothesis, scorer = twin_exchanges(scorer, hypothesis, polish, alternatives)
         unsettled = not hypothesis.kept.all() or explains_poorly(hypothesis, options.policy)
         if hypothesis.renamed and options.refine and unsettled:
             # the names exchanged, the marks are other marks; where the view found for the names
