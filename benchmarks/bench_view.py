@@ -9,6 +9,14 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
 
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
     python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
+    python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
+
+``--real`` classifies the 27 real photos of ``../shared/realphotos`` (measurement only: nothing
+is copied or trained on them) against the views estimated by eye in their keypoint files (±10°):
+the whole photo, the car's box (the union of the data set's part polygons) and the box of the
+hand-clicked marks (grown as ``carbody view -k`` grows it), each with within ±15° / ±30°,
+front/rear and left/right confusions, and a reliability table of the probabilities. It skips
+with a message when the folder is absent.
 
 ``--ablation`` renders one training set per variation switched off (background, colour,
 elevation/camera) plus the full one, at equal size, trains each for the same epochs, and tests
@@ -213,6 +221,128 @@ def main_ablation(args) -> None:
         print(f"| {name} | {s['top1']:.3f} | {s['within15']:.3f} | {s['front_rear_confusions']:.3f} |")
 
 
+# ----------------------------------------------------------------------------------- real photos
+
+REAL_PHOTOS = ROOT.parent / "shared" / "realphotos"
+
+
+def real_photo_set(root: Path) -> list[dict]:
+    """One dict per photo: image path, view estimate (deg), marks {name: (u, v)}, parts box."""
+    import json
+
+    parts = json.loads((root / "parts.json").read_text())
+    ids = {im["file_name"]: im["id"] for im in parts["images"]}
+    boxes: dict[int, list] = {}
+    for a in parts["annotations"]:
+        x, y, w, h = a["bbox"]
+        boxes.setdefault(a["image_id"], []).append((x, y, x + w, y + h))
+    out = []
+    for f in sorted((root / "keypoints").glob("*.json")):
+        d = json.loads(f.read_text())
+        b = np.array(boxes.get(ids.get(d["image"]), []), dtype=float)
+        out.append({"name": f.stem, "image": root / "images" / d["image"],
+                    "estimate_deg": float(d["view_estimate_deg"]) % 360.0,
+                    "marks": {k: tuple(v) for k, v in d["keypoints"].items()},
+                    "parts_box": (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max()) if len(b) else None})
+    return out
+
+
+def confusion_kind(pred_deg: float, true_deg: float) -> str:
+    """``ok`` (within 30°), else which mistake the prediction is nearest to: ``front/rear``
+    (θ ↔ 180° − θ, same side, ends swapped), ``left/right`` (θ ↔ 360° − θ, the mirror image),
+    ``both`` (θ ↔ θ + 180°) or ``other``."""
+    from carbody.view.labels import angular_difference
+
+    if angular_difference(pred_deg, true_deg) <= 30:
+        return "ok"
+    cands = {"front/rear": 180.0 - true_deg, "left/right": 360.0 - true_deg, "both": true_deg + 180.0}
+    kind, d = min(((k, float(angular_difference(pred_deg, a))) for k, a in cands.items()), key=lambda kv: kv[1])
+    return kind if d <= 30 else "other"
+
+
+def real_scores(pred_deg: np.ndarray, true_deg: np.ndarray) -> dict[str, float]:
+    from carbody.view.labels import angular_difference
+
+    err = angular_difference(pred_deg, true_deg)
+    kinds = [confusion_kind(p, t) for p, t in zip(pred_deg, true_deg)]
+    n = max(1, len(kinds))
+    return {"n": len(kinds), "within15": float((err <= 15).mean()), "within30": float((err <= 30).mean()),
+            "front_rear": sum(k in ("front/rear", "both") for k in kinds) / n,
+            "left_right": sum(k in ("left/right", "both") for k in kinds) / n,
+            "median_err": float(np.median(err)), "kinds": kinds, "err": err}
+
+
+def neighbour_mass(probs: np.ndarray) -> np.ndarray:
+    """(B,) probability that the view's class is the top class or one of its two neighbours."""
+    k = probs.argmax(1)
+    n = probs.shape[1]
+    idx = np.stack([(k - 1) % n, k, (k + 1) % n], 1)
+    return np.take_along_axis(probs, idx, 1).sum(1)
+
+
+def reliability_rows(conf: np.ndarray, hit: np.ndarray, edges=(0.0, 0.5, 0.7, 0.85, 0.95, 1.0001)) -> list:
+    """[(bin label, count, mean confidence, hit rate)] and the expected calibration error."""
+    rows, ece = [], 0.0
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        m = (conf >= lo) & (conf < hi)
+        if m.any():
+            rows.append((f"{lo:.2f}–{min(hi, 1):.2f}", int(m.sum()), float(conf[m].mean()), float(hit[m].mean())))
+            ece += m.mean() * abs(conf[m].mean() - hit[m].mean())
+    return rows, float(ece)
+
+
+def main_real(args) -> int:
+    import torch
+
+    from carbody.view.labels import CLASS_ANGLES_DEG, angular_difference
+    from carbody.view.predict import load_classifier, keypoint_box, predict_probabilities
+
+    root = Path(args.photos) if args.photos else REAL_PHOTOS
+    if not (root / "keypoints").is_dir():
+        print(f"skipped: no real photos at {root} (the shared folder is not here)")
+        return 0
+    torch.set_num_threads(1)
+    photos = real_photo_set(root)
+    _, meta = load_classifier(args.weights)
+    truth = np.array([p["estimate_deg"] for p in photos])
+    settings = {
+        "full photo": [None] * len(photos),
+        "car's box (part polygons)": [p["parts_box"] for p in photos],
+        "box of the marks (carbody view -k)": [keypoint_box(p["marks"]) for p in photos],
+    }
+    print(f"real photos: {len(photos)} from {root} (views estimated by eye, ±10°); weights "
+          f"{args.weights or 'shipped'}, temperature {float(meta.get('temperature', 1.0)):.2f}")
+    print("| input | within ±15° | within ±30° | front/rear confusions | left/right confusions | median error (°) |")
+    print("|---|---|---|---|---|---|")
+    results = {}
+    for label, boxes in settings.items():
+        probs = predict_probabilities([p["image"] for p in photos], args.weights, boxes=boxes)
+        from carbody.view.labels import continuous_estimate
+
+        pred = np.array([continuous_estimate(q) for q in probs])
+        s = real_scores(pred, truth)
+        results[label] = (s, probs, pred)
+        print(f"| {label} | {s['within15']:.2f} | {s['within30']:.2f} | {s['front_rear']:.2f} | "
+              f"{s['left_right']:.2f} | {s['median_err']:.0f} |")
+    if args.verbose:
+        print("| photo | estimate | " + " | ".join(settings) + " |\n|---|---|" + "---|" * len(settings))
+        for i, p in enumerate(photos):
+            cells = [f"{results[k][2][i]:.0f} ({results[k][0]['kinds'][i]})" for k in settings]
+            print(f"| {p['name']} | {truth[i]:.0f} | " + " | ".join(cells) + " |")
+    # Reliability on the car's box: P(top class or a neighbour) against |top class − estimate| ≤ 22.5°.
+    s, probs, _ = results["car's box (part polygons)"]
+    conf = neighbour_mass(probs)
+    hit = angular_difference(CLASS_ANGLES_DEG[probs.argmax(1)], truth) <= 22.5
+    rows, ece = reliability_rows(conf, hit)
+    print("reliability, car's box: P(the view's class is the top class or a neighbour) against "
+          "the top class lying within 22.5° of the estimate")
+    print("| P bin | photos | mean P | observed rate |\n|---|---|---|---|")
+    for label, n, c, h in rows:
+        print(f"| {label} | {n} | {c:.2f} | {h:.2f} |")
+    print(f"expected calibration error {ece:.3f}, mean P {conf.mean():.2f}, observed {hit.mean():.2f}")
+    return 0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--weights", default=None, help="weights file (default: shipped)")
@@ -226,8 +356,13 @@ def main() -> None:
                     help="ablation: renders of which the held-out cars' share is the test set")
     ap.add_argument("--workdir", default=None, help="ablation: folder to keep data sets and weights")
     ap.add_argument("--only", default=None, help="ablation: comma-separated variant names to run")
+    ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
+    ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
+    ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
     args = ap.parse_args()
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
+    if args.real:
+        return main_real(args)
     if args.ablation:
         if args.count == 480:
             args.count = 1200
