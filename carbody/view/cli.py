@@ -50,6 +50,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("image", help="picture file (PNG, JPEG, ...; gray, RGB or RGBA)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.add_argument("--weights", default=None, help="weights file (default: the shipped ones)")
+    crop = p.add_mutually_exclusive_group()
+    crop.add_argument("--box", type=float, nargs=4, metavar=("X0", "Y0", "X1", "Y1"), default=None,
+                      help="the car's box in pixels (u right, v down): the picture is cropped to it as "
+                           "the training renders frame their cars; much better when the car fills "
+                           "little of the photo")
+    crop.add_argument("-k", "--keypoints", default=None, metavar="FILE",
+                      help="keypoint file of the picture (project JSON, COCO, labelme): crop to the box "
+                           "of its marks, grown by 12 %% of its larger side")
     p.set_defaults(func=_view)
 
 
@@ -89,14 +97,25 @@ def _view(args) -> int:
 
     from carbody.view.predict import predict_view
 
-    p = predict_view(args.image, weights=args.weights)
+    from carbody.view.predict import keypoint_box
+
+    box = args.box
+    if args.keypoints:
+        from carbody.fit.keypoints_io import read_keypoints
+
+        box = keypoint_box(read_keypoints(args.keypoints).points)
+    p = predict_view(args.image, weights=args.weights, box=box)
     if args.json:
-        print(json.dumps(p.as_dict(), indent=1))
+        out = p.as_dict()
+        if box is not None:
+            out["box"] = [round(float(v), 1) for v in box]
+        print(json.dumps(out, indent=1))
         return 0
     top = sorted(range(len(p.probabilities)), key=lambda k: -p.probabilities[k])[:3]
     from carbody.view.labels import CLASS_ANGLES_DEG
 
     others = ", ".join(f"{int(CLASS_ANGLES_DEG[k])}° {p.probabilities[k]:.2f}" for k in top)
+    where = "" if box is None else " in box " + " ".join(f"{v:.0f}" for v in box)
     print(f"view {int(p.class_deg)}° ({p.side}; paper class {int(p.paper_class_deg)}°), estimate "
-          f"{p.theta_deg:.1f}°, confidence {p.confidence:.2f}  [top: {others}]")
+          f"{p.theta_deg:.1f}°, confidence {p.confidence:.2f}  [top: {others}]{where}")
     return 0

@@ -217,20 +217,25 @@ def check_box(box, image_size: tuple[int, int] | None = None) -> tuple[float, fl
     return x0, y0, x1, y1
 
 
-def keypoint_box(points, margin: float = KEYPOINT_BOX_MARGIN) -> tuple[float, float, float, float]:
+def keypoint_box(points, margin: float = KEYPOINT_BOX_MARGIN) -> tuple[float, float, float, float] | None:
     """The box (x0, y0, x1, y1) of keypoints ({name: (u, v)} or (N, 2) pixels), grown by
-    ``margin`` × its larger side on every side.
-
-    Raises:
-        ViewError: fewer than two keypoints, or they span no box.
-    """
-    uv = np.asarray(list(points.values()) if hasattr(points, "values") else points, dtype=float).reshape(-1, 2)
+    ``margin`` × its larger side on every side; None when the finite ones span no box (fewer
+    than two, or all within 2 px): then the whole picture is the best guess, and the fit says
+    what is wrong with the marks."""
+    try:
+        uv = np.asarray(list(points.values()) if hasattr(points, "values") else points, dtype=float).reshape(-1, 2)
+    except (TypeError, ValueError):
+        return None
     uv = uv[np.all(np.isfinite(uv), axis=1)]
     if len(uv) < 2:
-        raise ViewError("need at least two keypoints for their box")
+        return None
     (x0, y0), (x1, y1) = uv.min(0), uv.max(0)
     pad = margin * max(x1 - x0, y1 - y0)
-    return check_box((x0 - pad, y0 - pad, x1 + pad, y1 + pad))
+    if max(x1 - x0, y1 - y0) < 2:
+        return None
+    pad_y = max(pad, (2 - (y1 - y0)) / 2)      # marks on one line still make a box
+    pad_x = max(pad, (2 - (x1 - x0)) / 2)
+    return (float(x0 - pad_x), float(y0 - pad_y), float(x1 + pad_x), float(y1 + pad_y))
 
 
 def crop_to_box(image: np.ndarray, box, fill: float = BOX_FILL) -> np.ndarray:

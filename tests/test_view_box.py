@@ -1,0 +1,88 @@
+"""The view classifier looks at the car, not the photo: ``--box``, ``-k`` and reconstruct's marks box."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from carbody.errors import ViewError
+from carbody.view.predict import SHIPPED_WEIGHTS, crop_to_box, keypoint_box
+from tests.conftest import REPO, run_cli
+
+EXAMPLES = REPO / "examples"
+
+
+def test_crop_frames_the_box_as_the_renders_frame_their_cars():
+    img = np.zeros((100, 300, 3), np.uint8)
+    img[20:60, 50:150] = 255                                   # the "car": 100 x 40 px
+    crop = crop_to_box(img, (50, 20, 150, 60), fill=0.8)
+    assert crop.shape == (125, 125, 3)                         # larger side / fill, square
+    cols = np.flatnonzero(crop[:, :, 0].max(0) == 255)
+    rows = np.flatnonzero(crop[:, :, 0].max(1) == 255)
+    assert (cols[0], cols[-1] + 1) == (12, 112)                # centred, 80 % of the side
+    assert (rows[0], rows[-1] + 1) == (42, 82)                 # and centred up-down, padded
+    edge = crop_to_box(img, (0, 0, 60, 100), fill=0.5)         # outside the picture: its border repeats
+    assert edge.shape == (200, 200, 3) and edge[0, 0, 0] == img[0, 0, 0]
+
+
+def test_bad_boxes_are_refused_in_one_line():
+    img = np.zeros((100, 100, 3), np.uint8)
+    for box in [(10, 10, 5, 50), (0, 0, np.nan, 5), (200, 200, 300, 300), (1, 2, 3)]:
+        with pytest.raises(ViewError):
+            crop_to_box(img, box)
+
+
+def test_keypoint_box_grows_the_marks_box():
+    b = keypoint_box({"a": (100, 50), "b": (300, 150), "c": (float("nan"), 3)}, margin=0.1)
+    assert b == pytest.approx((80, 30, 320, 170))
+    assert keypoint_box({"a": (1, 1)}) is None and keypoint_box({"a": (5, 5), "b": (5.5, 5)}) is None
+
+
+@pytest.mark.skipif(not SHIPPED_WEIGHTS.is_file(), reason="no shipped weights")
+def test_view_box_and_keypoints_crop_before_classifying(tmp_path):
+    from carbody.fit.keypoints_io import read_keypoints
+    from carbody.render import save_png
+    from carbody.view.predict import predict_probabilities, read_image
+
+    photo = read_image(EXAMPLES / "car.png")
+    box = keypoint_box(read_keypoints(EXAMPLES / "car_keypoints.json").points)
+    # The car small in a wide, busy frame: the box must bring back what the crop alone gives.
+    h, w = photo.shape[:2]
+    rng = np.random.default_rng(0)
+    wide = rng.integers(0, 255, (3 * h, 3 * w, 3), dtype=np.uint8)
+    wide[h:2 * h, w:2 * w] = photo
+    save_png(wide, tmp_path / "wide.png")
+    shifted = (box[0] + w, box[1] + h, box[2] + w, box[3] + h)
+    want = predict_probabilities([crop_to_box(photo, box)])[0]
+    out = json.loads(run_cli("view", str(tmp_path / "wide.png"), "--json", "--box",
+                             *(f"{v:.3f}" for v in shifted), check=True).stdout)
+    got = np.array(list(out["probabilities"].values()))
+    assert out["box"] == pytest.approx(shifted, abs=0.1)
+    assert np.abs(got - want).max() < 2e-3
+    out = json.loads(run_cli("view", str(EXAMPLES / "car.png"), "--json", "-k",
+                             str(EXAMPLES / "car_keypoints.json"), check=True).stdout)
+    assert out["box"] == pytest.approx(box, abs=0.1)
+    assert np.abs(np.array(list(out["probabilities"].values())) - want).max() < 2e-3
+    bad = run_cli("view", str(EXAMPLES / "car.png"), "--box", "10", "10", "5", "5")
+    assert bad.returncode == 2 and "box" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_reconstruct_gives_the_classifier_the_marks_box(monkeypatch):
+    import carbody
+    import carbody.view.predict as predict
+    from carbody.fit.keypoints_io import read_keypoints
+
+    seen = []
+    real = predict.predict_view
+
+    def spy(image, weights=None, mirror_average=True, box=None):
+        seen.append(box)
+        return real(image, weights, mirror_average, box=box) if SHIPPED_WEIGHTS.is_file() else _flat()
+
+    def _flat():
+        return predict.ViewPrediction(2, 30.0, 30.0, 1 / 24, np.full(24, 1 / 24))
+
+    monkeypatch.setattr(predict, "predict_view", spy)
+    carbody.reconstruct(EXAMPLES / "car.png", EXAMPLES / "car_keypoints.json")
+    assert seen == [pytest.approx(keypoint_box(read_keypoints(EXAMPLES / "car_keypoints.json").points))]
