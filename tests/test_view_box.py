@@ -86,3 +86,20 @@ def test_reconstruct_gives_the_classifier_the_marks_box(monkeypatch):
     monkeypatch.setattr(predict, "predict_view", spy)
     carbody.reconstruct(EXAMPLES / "car.png", EXAMPLES / "car_keypoints.json")
     assert seen == [pytest.approx(keypoint_box(read_keypoints(EXAMPLES / "car_keypoints.json").points))]
+
+
+def test_temperature_fit_undoes_an_over_confident_network():
+    from carbody.view.calibrate import expected_calibration_error, fit_temperature, mirrored_probabilities
+
+    rng = np.random.default_rng(1)
+    labels = rng.integers(0, 24, 4000)
+    true_logits = rng.normal(0, 1.0, (4000, 24))
+    true_logits[np.arange(4000), labels] += 2.0
+    # sample the "true" class from the calibrated softmax, then make the network 3x over-confident
+    p_true = mirrored_probabilities(true_logits, None, 1.0)
+    drawn = np.array([rng.choice(24, p=p) for p in p_true])
+    t = fit_temperature(3.0 * true_logits, drawn)
+    assert t == pytest.approx(3.0, rel=0.1)
+    over = mirrored_probabilities(3.0 * true_logits, None, 1.0)
+    fixed = mirrored_probabilities(3.0 * true_logits, None, t)
+    assert expected_calibration_error(fixed, drawn) < 0.03 < expected_calibration_error(over, drawn)

@@ -43,6 +43,16 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", default=None, help="loss/accuracy PNG (default: OUTPUT with .png)")
     p.set_defaults(func=_train_view)
 
+    p = sub.add_parser("calibrate-view", help="fit the view classifier's temperature on rendered held-out cars",
+                       description="Fit one temperature T (logits / T before the softmax) that minimises the "
+                                   "negative log-likelihood of a rendered data set's images of the cars the "
+                                   "weights were not trained on, with mirror averaging as carbody view does, and store it "
+                                   "in the weights file, so the probabilities reported are calibrated.")
+    p.add_argument("dataset", help="folder written by render-dataset (its images of the weights' held-out cars are used)")
+    p.add_argument("--weights", required=True, help="weights file to calibrate (rewritten in place)")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    p.set_defaults(func=_calibrate_view)
+
     p = sub.add_parser("view", help="tell the view angle of a car picture",
                        description="Classify the view angle of a car picture with the shipped MobileNetV2: "
                                    "class (0-345 deg by 15; 0 front, 90 left side, 180 rear, 270 right side), "
@@ -89,6 +99,18 @@ def _train_view(args) -> int:
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "
           f"({hist.seconds:.0f} s)")
+    return 0
+
+
+def _calibrate_view(args) -> int:
+    import torch
+
+    from carbody.view.calibrate import calibrate_weights
+
+    torch.set_num_threads(max(1, args.threads))
+    r = calibrate_weights(args.weights, args.dataset)
+    print(f"{args.weights}: temperature {r['temperature']:.3f} on {r['images']} held-out renders; "
+          f"NLL {r['nll_before']:.3f} -> {r['nll_after']:.3f}, ECE {r['ece_before']:.3f} -> {r['ece_after']:.3f}")
     return 0
 
 
