@@ -10,6 +10,7 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
     python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
     python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
+    python benchmarks/bench_view.py --photo-ablation [--epochs 25] [--count 2400] [--workdir DIR] [--only ROWS]
 
 ``--real`` classifies the 27 real photos of ``../shared/realphotos`` (measurement only: nothing
 is copied or trained on them) against the views estimated by eye in their keypoint files (±10°):
@@ -39,10 +40,12 @@ ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "benchmarks" / "figures"
 
 
-def evaluation_set(out: Path, count: int, seed: int, templates: list[str]) -> Path:
-    from carbody.view.dataset import render_dataset
+def evaluation_set(out: Path, count: int, seed: int, templates: list[str], photo_like: bool = False) -> Path:
+    from carbody.view.dataset import Variation, render_dataset
+    from carbody.view.photo import PhotoLook
 
-    render_dataset(out, count=count, seed=seed, bodies_per_template=4, templates=templates, progress=True)
+    vary = Variation(photo=PhotoLook()) if photo_like else Variation()
+    render_dataset(out, count=count, seed=seed, bodies_per_template=4, templates=templates, progress=True, vary=vary)
     return out
 
 
@@ -139,7 +142,7 @@ def main_eval(args) -> None:
         val_templates = sorted({r.get("template", "?") for r in rows})
     else:
         dataset = evaluation_set(Path(tempfile.mkdtemp(prefix="carbody-view-eval-")) / "set", args.count,
-                                 args.seed, val_templates)
+                                 args.seed, val_templates, args.photo_like)
         rows = read_manifest(dataset)
     t = time.perf_counter()
     probs = classify(dataset, args.weights, rows)
@@ -157,7 +160,7 @@ def main_eval(args) -> None:
     print(f"weights: {len(hist['train_loss'])} epochs, {meta['dataset']['train_images']} training / "
           f"{meta['dataset']['val_images']} validation images, training time {hist['seconds']:.0f} s; "
           f"held-out cars: {', '.join(val_templates)}")
-    print(f"evaluation set: {'fresh renders, seed %d' % args.seed if not args.dataset else dataset} "
+    print(f"evaluation set: {'fresh %s renders, seed %d' % ('photo-like' if args.photo_like else 'classic', args.seed) if not args.dataset else dataset} "
           f"({len(rows)} images)")
     print("| measure | value |\n|---|---|")
     print(f"| top-1 accuracy, 24 classes (held-out cars) | {s['top1']:.3f} |")
@@ -343,6 +346,85 @@ def main_real(args) -> int:
     return 0
 
 
+PHOTO_VARIANTS = ("classic renders (today's looks)", "photo-like, all changes", "- person-height camera",
+                  "- ground and contact shadow", "- environment-lit paint and glass", "- photo backdrops",
+                  "- blur/noise/JPEG artefacts", "- plates", "- blended bodies", "- zoom augmentation")
+
+
+def photo_variant(name: str, blends: int):
+    """(Variation, blends, zoom) of one row of the photo-like ablation."""
+    from carbody.view.dataset import Variation
+    from carbody.view.photo import PhotoLook
+
+    off = {"- person-height camera": "camera", "- ground and contact shadow": "ground",
+           "- environment-lit paint and glass": "environment", "- photo backdrops": "backdrop",
+           "- blur/noise/JPEG artefacts": "artefacts", "- plates": "plates"}
+    if name.startswith("classic"):
+        return Variation(), blends, False
+    photo = PhotoLook(**({off[name]: False} if name in off else {}))
+    return (Variation(photo=photo, photo_fraction=0.8), 0 if name == "- blended bodies" else blends,
+            name != "- zoom augmentation")
+
+
+def main_photo_ablation(args) -> None:
+    """One training set per row (same seed, bodies, split and size), the same epochs, each model
+    measured on the real photos' car boxes and on photo-like renders of the held-out cars."""
+    import json
+
+    from carbody.view.dataset import read_manifest, render_dataset
+    from carbody.view.labels import continuous_estimate
+    from carbody.view.predict import keypoint_box, predict_probabilities
+    from carbody.view.train import TrainConfig, train_view_classifier
+
+    work = Path(args.workdir or tempfile.mkdtemp(prefix="carbody-view-photo-ablation-"))
+    root = Path(args.photos) if args.photos else REAL_PHOTOS
+    photos = real_photo_set(root) if (root / "keypoints").is_dir() else []
+    truth = np.array([p["estimate_deg"] for p in photos])
+    only = [x.strip() for x in args.only.split(",")] if args.only else list(PHOTO_VARIANTS)
+    results_file = work / "results.json"
+    results = json.loads(results_file.read_text()) if results_file.exists() else {}
+    test_dir = work / "test_photo"
+    for name in PHOTO_VARIANTS:
+        if name not in only:
+            continue
+        vary, blends, zoom = photo_variant(name, args.blends)
+        d = work / ("v_" + "".join(c for c in name if c.isalnum()))
+        if not (d / "manifest.csv").exists():
+            render_dataset(d, count=args.count, seed=args.seed, bodies_per_template=2, vary=vary, blends=blends,
+                           progress=True)
+        if not (test_dir / "manifest.csv").exists():
+            val = json.loads((d / "dataset.json").read_text())["validation_templates"]
+            evaluation_set(test_dir, args.test_count, args.seed + 1, val, photo_like=True)
+        w = d / f"weights_e{args.epochs}.pt"
+        secs = float("nan")
+        if not w.exists():
+            secs = train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1, zoom=zoom)).seconds
+        test_rows = read_manifest(test_dir)
+        r = scores(test_rows, classify(test_dir, str(w), test_rows))
+        row = {"renders_top1": r["top1"], "renders_within15": r["within15"], "train_s": secs}
+        for label, boxes in (("box", [p["parts_box"] for p in photos]), ("marks", [keypoint_box(p["marks"]) for p in photos]),
+                             ("full", [None] * len(photos))):
+            if photos:
+                pr = predict_probabilities([p["image"] for p in photos], str(w), boxes=boxes)
+                sc = real_scores(np.array([continuous_estimate(q) for q in pr]), truth)
+                row |= {f"{label}_{k}": sc[k] for k in ("within15", "within30", "front_rear", "left_right")}
+        results[name] = row
+        results_file.write_text(json.dumps(results, indent=1))
+        print(name, row, flush=True)
+    print(f"photo-like ablation: {args.count} renders per row (2 bodies per template, {args.blends} blends; "
+          f"about 80 % train), {args.epochs} epochs, 1 thread; real photos: car's box (part polygons); "
+          f"renders: {args.test_count} photo-like renders of the held-out cars")
+    print("| training renders | real ±15° | real ±30° | front/rear | left/right | marks box ±15° | full photo ±15° "
+          "| renders top-1 | renders ±15° |\n|---|---|---|---|---|---|---|---|---|")
+    for name in PHOTO_VARIANTS:
+        if name in results:
+            r = results[name]
+            print(f"| {name} | {r.get('box_within15', float('nan')):.2f} | {r.get('box_within30', float('nan')):.2f} | "
+                  f"{r.get('box_front_rear', float('nan')):.2f} | {r.get('box_left_right', float('nan')):.2f} | "
+                  f"{r.get('marks_within15', float('nan')):.2f} | {r.get('full_within15', float('nan')):.2f} | "
+                  f"{r['renders_top1']:.3f} | {r['renders_within15']:.3f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--weights", default=None, help="weights file (default: shipped)")
@@ -356,6 +438,10 @@ def main() -> None:
                     help="ablation: renders of which the held-out cars' share is the test set")
     ap.add_argument("--workdir", default=None, help="ablation: folder to keep data sets and weights")
     ap.add_argument("--only", default=None, help="ablation: comma-separated variant names to run")
+    ap.add_argument("--photo-like", action="store_true", help="evaluate on photo-like renders (default classic)")
+    ap.add_argument("--photo-ablation", action="store_true",
+                    help="ablation of the photo-like renders, measured on the real photos (see PHOTO_VARIANTS)")
+    ap.add_argument("--blends", type=int, default=20, help="photo ablation: blended bodies per training set")
     ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
@@ -363,6 +449,12 @@ def main() -> None:
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
     if args.real:
         return main_real(args)
+    if args.photo_ablation:
+        if args.count == 480:
+            args.count = 2400
+        if args.test_count == 2400:
+            args.test_count = 480
+        return main_photo_ablation(args)
     if args.ablation:
         if args.count == 480:
             args.count = 1200

@@ -19,6 +19,16 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-background", action="store_true", help="plain white backgrounds (ablation)")
     p.add_argument("--no-colour", action="store_true", help="one paint, glass and light (ablation)")
     p.add_argument("--no-elevation", action="store_true", help="fixed 10 deg elevation, centred, orthographic (ablation)")
+    p.add_argument("--photo-like", action="store_true",
+                   help="photo-like renders: a camera at a person's height 3-15 m away, ground and contact "
+                        "shadow, environment-lit paint and glass, plates, street backdrops, blur/noise/JPEG")
+    p.add_argument("--photo-off", default="", metavar="PARTS",
+                   help="with --photo-like, switch these parts off (ablation; comma-separated: camera, "
+                        "ground, environment, backdrop, artefacts, plates)")
+    p.add_argument("--photo-fraction", type=float, default=1.0,
+                   help="with --photo-like, the share of photo-like images (the rest classic; default 1)")
+    p.add_argument("--blends", type=int, default=0,
+                   help="this many more bodies, each a random mix of two training templates")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="render on a running Dask cluster (tcp://host:8786) whose workers see OUT_DIR at the "
                         "same path; the images are the same bit for bit as in one process")
@@ -41,6 +51,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "constant (the paper's setting)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--plot", default=None, help="loss/accuracy PNG (default: OUTPUT with .png)")
+    p.add_argument("--zoom", action="store_true", help="augment with a random zoom of 0.85-1.2 (an inexact box)")
+    p.add_argument("--no-calibrate", action="store_true",
+                   help="do not fit the temperature on the validation split after training")
     p.set_defaults(func=_train_view)
 
     p = sub.add_parser("calibrate-view", help="fit the view classifier's temperature on rendered held-out cars",
@@ -74,10 +87,23 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 def _render_dataset(args) -> int:
     from carbody.view.dataset import DEFAULT_COUNT, Variation, render_dataset
 
+    from carbody.errors import ViewError
+    from carbody.view.photo import PhotoLook
+
+    photo = None
+    if args.photo_like:
+        off = {x.strip() for x in args.photo_off.split(",") if x.strip()}
+        unknown = off - set(PhotoLook.__dataclass_fields__)
+        if unknown:
+            raise ViewError(f"--photo-off: unknown part {sorted(unknown)[0]!r} "
+                            f"(one of {', '.join(PhotoLook.__dataclass_fields__)})")
+        photo = PhotoLook(**{k: k not in off for k in PhotoLook.__dataclass_fields__})
+    if not 0.0 <= args.photo_fraction <= 1.0:
+        raise ViewError(f"--photo-fraction must be within 0..1, got {args.photo_fraction}")
     vary = Variation(background=not (args.plain or args.no_background), colour=not (args.plain or args.no_colour),
-                     elevation=not (args.plain or args.no_elevation))
+                     elevation=not (args.plain or args.no_elevation), photo=photo, photo_fraction=args.photo_fraction)
     kw = dict(count=args.count or DEFAULT_COUNT, seed=args.seed, bodies_per_template=args.bodies_per_template,
-              vary=vary)
+              vary=vary, blends=args.blends)
     if args.scheduler is None and args.workers is None:
         manifest = render_dataset(args.out_dir, **kw)
     else:
@@ -95,10 +121,16 @@ def _train_view(args) -> int:
 
     check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
-                      threads=args.threads, schedule=args.schedule)
+                      threads=args.threads, schedule=args.schedule, zoom=args.zoom)
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "
           f"({hist.seconds:.0f} s)")
+    if not args.no_calibrate:
+        from carbody.view.calibrate import calibrate_weights
+
+        r = calibrate_weights(args.output, args.dataset, progress=False)
+        print(f"temperature {r['temperature']:.3f} on {r['images']} held-out renders (ECE {r['ece_before']:.3f} "
+              f"-> {r['ece_after']:.3f})")
     return 0
 
 
