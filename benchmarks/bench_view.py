@@ -136,12 +136,14 @@ def main_eval(args) -> None:
     torch.set_num_threads(1)
     _, meta = load_classifier(args.weights)
     val_templates = meta["dataset"]["validation_templates"]
+    if args.templates:      # e.g. another model's held-out cars, to compare two weights on one set
+        val_templates = [t.strip() for t in args.templates.split(",")]
     if args.dataset:
         dataset = Path(args.dataset)
         rows = [r for r in read_manifest(dataset) if r["split"] == "val"]
         val_templates = sorted({r.get("template", "?") for r in rows})
     else:
-        dataset = evaluation_set(Path(tempfile.mkdtemp(prefix="carbody-view-eval-")) / "set", args.count,
+        dataset = evaluation_set(Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="carbody-view-eval-")) / "set", args.count,
                                  args.seed, val_templates, args.photo_like)
         rows = read_manifest(dataset)
     t = time.perf_counter()
@@ -207,7 +209,7 @@ def main_ablation(args) -> None:
         d = work / ("v_" + "".join(c for c in name if c.isalnum()))
         if not (d / "manifest.csv").exists():
             render_dataset(d, count=args.count, seed=args.seed, bodies_per_template=2, vary=vary, progress=True)
-        w = d / f"weights_e{args.epochs}.pt"
+        w = d / f"weights_e{args.epochs}{'' if zoom else '_nozoom'}.pt"
         if not w.exists():
             hist = train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1), progress=True)
             secs = hist.seconds
@@ -388,14 +390,16 @@ def main_photo_ablation(args) -> None:
         if name not in only:
             continue
         vary, blends, zoom = photo_variant(name, args.blends)
-        d = work / ("v_" + "".join(c for c in name if c.isalnum()))
+        # the zoom row trains on the renders of the all-changes row
+        same_renders = PHOTO_VARIANTS[1] if name == "- zoom augmentation" else name
+        d = work / ("v_" + "".join(c for c in same_renders if c.isalnum()))
         if not (d / "manifest.csv").exists():
             render_dataset(d, count=args.count, seed=args.seed, bodies_per_template=2, vary=vary, blends=blends,
                            progress=True)
         if not (test_dir / "manifest.csv").exists():
             val = json.loads((d / "dataset.json").read_text())["validation_templates"]
             evaluation_set(test_dir, args.test_count, args.seed + 1, val, photo_like=True)
-        w = d / f"weights_e{args.epochs}.pt"
+        w = d / f"weights_e{args.epochs}{'' if zoom else '_nozoom'}.pt"
         secs = float("nan")
         if not w.exists():
             secs = train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1, zoom=zoom)).seconds
@@ -439,6 +443,9 @@ def main() -> None:
     ap.add_argument("--workdir", default=None, help="ablation: folder to keep data sets and weights")
     ap.add_argument("--only", default=None, help="ablation: comma-separated variant names to run")
     ap.add_argument("--photo-like", action="store_true", help="evaluate on photo-like renders (default classic)")
+    ap.add_argument("--templates", default=None,
+                    help="comma-separated templates to render for the evaluation (default: the weights' held-out cars)")
+    ap.add_argument("--keep", default=None, help="render the evaluation set into this folder (reuse with --dataset)")
     ap.add_argument("--photo-ablation", action="store_true",
                     help="ablation of the photo-like renders, measured on the real photos (see PHOTO_VARIANTS)")
     ap.add_argument("--blends", type=int, default=20, help="photo ablation: blended bodies per training set")

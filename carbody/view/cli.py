@@ -51,6 +51,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "constant (the paper's setting)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--plot", default=None, help="loss/accuracy PNG (default: OUTPUT with .png)")
+    p.add_argument("--init", default=None, metavar="W.pt", help="start from these weights instead of from scratch")
     p.add_argument("--zoom", action="store_true", help="augment with a random zoom of 0.85-1.2 (an inexact box)")
     p.add_argument("--no-calibrate", action="store_true",
                    help="do not fit the temperature on the validation split after training")
@@ -121,7 +122,8 @@ def _train_view(args) -> int:
 
     check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
-                      threads=args.threads, schedule=args.schedule, zoom=args.zoom)
+                      threads=args.threads, schedule=args.schedule, zoom=args.zoom,
+                      init=args.init)
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "
           f"({hist.seconds:.0f} s)")

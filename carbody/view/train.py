@@ -46,6 +46,7 @@ class TrainConfig:
     augment: bool = True
     schedule: str = "cosine"
     zoom: bool = False
+    init: str | None = None
 
 
 @dataclass
@@ -189,6 +190,9 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
     y_val = np.array([r["class_index"] for r in val_rows], dtype=np.int64)
 
     model = build_mobilenet_v2(N_CLASSES, width_mult=config.width_mult)
+    if config.init:         # go on from earlier weights (a longer schedule in two runs)
+        payload = torch.load(config.init, map_location="cpu", weights_only=True)
+        model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in payload["state_dict"].items()})
     opt = torch.optim.Adam(model.parameters(), lr=config.lr)
     steps = config.epochs * -(-len(x_train) // config.batch_size)
     sched = torch.optim.lr_scheduler.LambdaLR(
