@@ -382,7 +382,7 @@ def main_photo_ablation(args) -> None:
     root = Path(args.photos) if args.photos else REAL_PHOTOS
     photos = real_photo_set(root) if (root / "keypoints").is_dir() else []
     truth = np.array([p["estimate_deg"] for p in photos])
-    only = [x.strip() for x in args.only.split(",")] if args.only else list(PHOTO_VARIANTS)
+    only = [x.strip() for x in args.only.split(";")] if args.only else list(PHOTO_VARIANTS)
     results_file = work / "results.json"
     results = json.loads(results_file.read_text()) if results_file.exists() else {}
     test_dir = work / "test_photo"
@@ -441,7 +441,7 @@ def main() -> None:
     ap.add_argument("--test-count", type=int, default=2400,
                     help="ablation: renders of which the held-out cars' share is the test set")
     ap.add_argument("--workdir", default=None, help="ablation: folder to keep data sets and weights")
-    ap.add_argument("--only", default=None, help="ablation: comma-separated variant names to run")
+    ap.add_argument("--only", default=None, help="ablation: comma-separated variant names to run (--photo-ablation: separated by ';')")
     ap.add_argument("--photo-like", action="store_true", help="evaluate on photo-like renders (default classic)")
     ap.add_argument("--templates", default=None,
                     help="comma-separated templates to render for the evaluation (default: the weights' held-out cars)")

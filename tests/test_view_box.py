@@ -40,7 +40,16 @@ def test_keypoint_box_grows_the_marks_box():
 
 
 @pytest.mark.skipif(not SHIPPED_WEIGHTS.is_file(), reason="no shipped weights")
-def test_view_box_and_keypoints_crop_before_classifying(tmp_path):
+def _view_json(capsys, *args: str) -> dict:
+    """``carbody view ... --json`` in this process (the subprocess start-up is tested elsewhere)."""
+    from carbody.cli import main
+
+    capsys.readouterr()
+    assert main(["view", *args, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_view_box_and_keypoints_crop_before_classifying(tmp_path, capsys):
     from carbody.fit.keypoints_io import read_keypoints
     from carbody.render import save_png
     from carbody.view.predict import predict_probabilities, read_image
@@ -55,13 +64,11 @@ def test_view_box_and_keypoints_crop_before_classifying(tmp_path):
     save_png(wide, tmp_path / "wide.png")
     shifted = (box[0] + w, box[1] + h, box[2] + w, box[3] + h)
     want = predict_probabilities([crop_to_box(photo, box)])[0]
-    out = json.loads(run_cli("view", str(tmp_path / "wide.png"), "--json", "--box",
-                             *(f"{v:.3f}" for v in shifted), check=True).stdout)
+    out = _view_json(capsys, str(tmp_path / "wide.png"), "--box", *(f"{v:.3f}" for v in shifted))
     got = np.array(list(out["probabilities"].values()))
     assert out["box"] == pytest.approx(shifted, abs=0.1)
     assert np.abs(got - want).max() < 2e-3
-    out = json.loads(run_cli("view", str(EXAMPLES / "car.png"), "--json", "-k",
-                             str(EXAMPLES / "car_keypoints.json"), check=True).stdout)
+    out = _view_json(capsys, str(EXAMPLES / "car.png"), "-k", str(EXAMPLES / "car_keypoints.json"))
     assert out["box"] == pytest.approx(box, abs=0.1)
     assert np.abs(np.array(list(out["probabilities"].values())) - want).max() < 2e-3
     bad = run_cli("view", str(EXAMPLES / "car.png"), "--box", "10", "10", "5", "5")
@@ -103,3 +110,14 @@ def test_temperature_fit_undoes_an_over_confident_network():
     over = mirrored_probabilities(3.0 * true_logits, None, 1.0)
     fixed = mirrored_probabilities(3.0 * true_logits, None, t)
     assert expected_calibration_error(fixed, drawn) < 0.03 < expected_calibration_error(over, drawn)
+
+
+@pytest.mark.skipif(not SHIPPED_WEIGHTS.is_file(), reason="no shipped weights")
+def test_weights_in_the_package_stay_within_10_mb_and_carry_a_fitted_temperature():
+    from carbody.view.predict import load_classifier
+
+    files = sorted(SHIPPED_WEIGHTS.parent.glob("*.pt"))
+    assert sum(f.stat().st_size for f in files) <= 10_000_000
+    for f in files:
+        _, meta = load_classifier(str(f))
+        assert 0.3 < meta["temperature"] < 3.0 and meta["calibration"]["ece_after"] <= meta["calibration"]["ece_before"]

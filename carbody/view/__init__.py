@@ -5,7 +5,10 @@
 - :mod:`carbody.view.dataset`: render the data set from library bodies (``carbody render-dataset``).
 - :mod:`carbody.view.network`: MobileNetV2 in plain torch.
 - :mod:`carbody.view.train`: train it (``carbody train-view``).
-- :mod:`carbody.view.predict`: tell the view of a picture with the shipped weights (``carbody view``).
+- :mod:`carbody.view.photo`: photo-like looks for the renders (``render-dataset --photo-like``).
+- :mod:`carbody.view.calibrate`: the temperature that calibrates the probabilities (``carbody calibrate-view``).
+- :mod:`carbody.view.predict`: tell the view of a picture with the shipped weights (``carbody view``,
+  ``--box`` / ``-k`` to crop to the car).
 
 Heavy imports (torch, VTK, OCP) happen inside functions.
 """
