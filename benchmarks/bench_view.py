@@ -327,8 +327,20 @@ def main_real(args) -> int:
         pred = np.array([continuous_estimate(q) for q in probs])
         s = real_scores(pred, truth)
         results[label] = (s, probs, pred)
+        if label.startswith("box of the marks"):     # and what the marks' names say of the view
+            from carbody.view.marks import combine_with_marks
+
+            probs_m = np.array([combine_with_marks(q, p["marks"]) for q, p in zip(probs, photos)])
+            pred_m = np.array([continuous_estimate(q) for q in probs_m])
+            sm = real_scores(pred_m, truth)
+            results["marks' box and names"] = (sm, probs_m, pred_m)
         print(f"| {label} | {s['within15']:.2f} | {s['within30']:.2f} | {s['front_rear']:.2f} | "
               f"{s['left_right']:.2f} | {s['median_err']:.0f} |")
+    if "marks' box and names" in results:
+        sm = results["marks' box and names"][0]
+        print(f"| box of the marks × their names' view likelihood (carbody view -k) | {sm['within15']:.2f} | "
+              f"{sm['within30']:.2f} | {sm['front_rear']:.2f} | {sm['left_right']:.2f} | {sm['median_err']:.0f} |")
+        settings = {**settings, "marks' box and names": None}
     if args.verbose:
         print("| photo | estimate | " + " | ".join(settings) + " |\n|---|---|" + "---|" * len(settings))
         for i, p in enumerate(photos):

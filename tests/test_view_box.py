@@ -64,13 +64,16 @@ def test_view_box_and_keypoints_crop_before_classifying(tmp_path, capsys):
     save_png(wide, tmp_path / "wide.png")
     shifted = (box[0] + w, box[1] + h, box[2] + w, box[3] + h)
     want = predict_probabilities([crop_to_box(photo, box)])[0]
+    from carbody.view.marks import combine_with_marks
+
+    marks = read_keypoints(EXAMPLES / "car_keypoints.json").points
     out = _view_json(capsys, str(tmp_path / "wide.png"), "--box", *(f"{v:.3f}" for v in shifted))
     got = np.array(list(out["probabilities"].values()))
     assert out["box"] == pytest.approx(shifted, abs=0.1)
     assert np.abs(got - want).max() < 2e-3
     out = _view_json(capsys, str(EXAMPLES / "car.png"), "-k", str(EXAMPLES / "car_keypoints.json"))
     assert out["box"] == pytest.approx(box, abs=0.1)
-    assert np.abs(np.array(list(out["probabilities"].values())) - want).max() < 2e-3
+    assert np.abs(np.array(list(out["probabilities"].values())) - combine_with_marks(want, marks)).max() < 2e-3
     bad = run_cli("view", str(EXAMPLES / "car.png"), "--box", "10", "10", "5", "5")
     assert bad.returncode == 2 and "box" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
 
@@ -83,9 +86,10 @@ def test_reconstruct_gives_the_classifier_the_marks_box(monkeypatch):
     seen = []
     real = predict.predict_view
 
-    def spy(image, weights=None, mirror_average=True, box=None):
+    def spy(image, weights=None, mirror_average=True, box=None, marks=None):
         seen.append(box)
-        return real(image, weights, mirror_average, box=box) if SHIPPED_WEIGHTS.is_file() else _flat()
+        assert marks is None        # the fit's own search over every view reads the marks' names
+        return real(image, weights, mirror_average, box=box, marks=marks) if SHIPPED_WEIGHTS.is_file() else _flat()
 
     def _flat():
         return predict.ViewPrediction(2, 30.0, 30.0, 1 / 24, np.full(24, 1 / 24))
@@ -121,3 +125,30 @@ def test_weights_in_the_package_stay_within_10_mb_and_carry_a_fitted_temperature
     for f in files:
         _, meta = load_classifier(str(f))
         assert 0.3 < meta["temperature"] < 3.0 and meta["calibration"]["ece_after"] <= meta["calibration"]["ece_before"]
+
+
+def test_the_marks_names_tell_the_end_and_the_side():
+    from carbody.view.labels import class_of
+    from carbody.view.marks import combine_with_marks, mark_likelihood
+
+    front_left = ["nose_centre", "cowl_centre", "a_pillar_base", "a_pillar_base_right", "front_arch_top",
+                  "b_pillar_belt", "rear_arch_top"]
+    like = mark_likelihood(front_left)
+    assert like[class_of(30)] > 20 * like[class_of(150)]          # the nose is marked: not from behind
+    assert like[class_of(30)] > 20 * like[class_of(330)]          # left arches marked: the left side
+    rear_right = ["tail_top_centre", "rear_bumper_bottom_centre", "rear_arch_top_right", "deck_corner_right"]
+    assert mark_likelihood(rear_right).argmax() in {class_of(a) for a in (180, 195, 210, 225, 240)}
+    # a classifier torn between front-left and rear-right is settled by the names
+    p = np.zeros(24)
+    p[class_of(30)], p[class_of(210)] = 0.45, 0.55
+    assert combine_with_marks(p, front_left).argmax() == class_of(30)
+    assert np.array_equal(mark_likelihood(["no_such_mark"]), np.ones(24))
+
+
+def test_the_shipped_visibility_table_is_what_the_geometry_gives():
+    from carbody.view.marks import TABLE_FILE, compute_visibility_table, visibility_table
+
+    assert TABLE_FILE.is_file()
+    names, table = visibility_table()
+    fresh_names, fresh = compute_visibility_table(classes=[2, 12])     # front 30°, rear
+    assert names == fresh_names and np.abs(table[[2, 12]] - fresh).max() < 1e-3

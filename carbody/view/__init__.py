@@ -15,11 +15,11 @@ Heavy imports (torch, VTK, OCP) happen inside functions.
 from carbody.view.labels import CLASS_ANGLES_DEG, N_CLASSES, class_of, continuous_estimate, mirror_class
 
 
-def predict_view(image, weights=None, mirror_average: bool = True, box=None):
+def predict_view(image, weights=None, mirror_average: bool = True, box=None, marks=None):
     """See :func:`carbody.view.predict.predict_view`."""
     from carbody.view.predict import predict_view as _predict
 
-    return _predict(image, weights, mirror_average, box=box)
+    return _predict(image, weights, mirror_average, box=box, marks=marks)
 
 
 __all__ = ["CLASS_ANGLES_DEG", "N_CLASSES", "class_of", "continuous_estimate", "mirror_class", "predict_view"]

@@ -81,7 +81,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                            "little of the photo")
     crop.add_argument("-k", "--keypoints", default=None, metavar="FILE",
                       help="keypoint file of the picture (project JSON, COCO, labelme): crop to the box "
-                           "of its marks, grown by 12 %% of its larger side")
+                           "of its marks, grown by 12 %% of its larger side, and weigh the views by "
+                           "which of them could see the marked keypoints")
     p.set_defaults(func=_view)
 
 
@@ -155,12 +156,13 @@ def _view(args) -> int:
 
     from carbody.view.predict import keypoint_box
 
-    box = args.box
+    box, marks = args.box, None
     if args.keypoints:
         from carbody.fit.keypoints_io import read_keypoints
 
-        box = keypoint_box(read_keypoints(args.keypoints).points)
-    p = predict_view(args.image, weights=args.weights, box=box)
+        marks = read_keypoints(args.keypoints).points
+        box = keypoint_box(marks)
+    p = predict_view(args.image, weights=args.weights, box=box, marks=marks)
     if args.json:
         out = p.as_dict()
         if box is not None:

@@ -296,18 +296,25 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
 
 
 def predict_view(image, weights: str | Path | None = None, mirror_average: bool = True,
-                 box=None) -> ViewPrediction:
+                 box=None, marks=None) -> ViewPrediction:
     """The view angle of one car picture (path or array); see :class:`ViewPrediction`.
 
     Args:
         box: the car's box (x0, y0, x1, y1) pixels, e.g. :func:`keypoint_box` of its marks; the
             picture is cropped to it as the renders frame their cars (much better on photos
             where the car fills little of the frame). None: the whole picture.
+        marks: names of the keypoints marked on the picture (or a {name: (u, v)} map): their
+            view likelihood (:mod:`carbody.view.marks`) multiplies the probabilities, which
+            settles front against rear and left against right.
 
     Raises:
         ImageError: unreadable, empty or tiny picture.
         ViewError: missing or bad weights, a bad box.
     """
     p = predict_probabilities([image], weights, mirror_average, boxes=[box])[0]
+    if marks:
+        from carbody.view.marks import combine_with_marks
+
+        p = combine_with_marks(p, list(marks))
     k = int(np.argmax(p))
     return ViewPrediction(k, float(CLASS_ANGLES_DEG[k]), continuous_estimate(p), float(p[k]), p)
