@@ -9,6 +9,15 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
 
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
     python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
+    python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
+    python benchmarks/bench_view.py --photo-ablation [--epochs 25] [--count 2400] [--workdir DIR] [--only ROWS]
+
+``--real`` classifies the 27 real photos of ``../shared/realphotos`` (measurement only: nothing
+is copied or trained on them) against the views estimated by eye in their keypoint files (±10°):
+the whole photo, the car's box (the union of the data set's part polygons) and the box of the
+hand-clicked marks (grown as ``carbody view -k`` grows it), each with within ±15° / ±30°,
+front/rear and left/right confusions, and a reliability table of the probabilities. It skips
+with a message when the folder is absent.
 
 ``--ablation`` renders one training set per variation switched off (background, colour,
 elevation/camera) plus the full one, at equal size, trains each for the same epochs, and tests
@@ -31,10 +40,12 @@ ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "benchmarks" / "figures"
 
 
-def evaluation_set(out: Path, count: int, seed: int, templates: list[str]) -> Path:
-    from carbody.view.dataset import render_dataset
+def evaluation_set(out: Path, count: int, seed: int, templates: list[str], photo_like: bool = False) -> Path:
+    from carbody.view.dataset import Variation, render_dataset
+    from carbody.view.photo import PhotoLook
 
-    render_dataset(out, count=count, seed=seed, bodies_per_template=4, templates=templates, progress=True)
+    vary = Variation(photo=PhotoLook()) if photo_like else Variation()
+    render_dataset(out, count=count, seed=seed, bodies_per_template=4, templates=templates, progress=True, vary=vary)
     return out
 
 
@@ -125,13 +136,15 @@ def main_eval(args) -> None:
     torch.set_num_threads(1)
     _, meta = load_classifier(args.weights)
     val_templates = meta["dataset"]["validation_templates"]
+    if args.templates:      # e.g. another model's held-out cars, to compare two weights on one set
+        val_templates = [t.strip() for t in args.templates.split(",")]
     if args.dataset:
         dataset = Path(args.dataset)
         rows = [r for r in read_manifest(dataset) if r["split"] == "val"]
         val_templates = sorted({r.get("template", "?") for r in rows})
     else:
-        dataset = evaluation_set(Path(tempfile.mkdtemp(prefix="carbody-view-eval-")) / "set", args.count,
-                                 args.seed, val_templates)
+        dataset = evaluation_set(Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="carbody-view-eval-")) / "set", args.count,
+                                 args.seed, val_templates, args.photo_like)
         rows = read_manifest(dataset)
     t = time.perf_counter()
     probs = classify(dataset, args.weights, rows)
@@ -149,7 +162,7 @@ def main_eval(args) -> None:
     print(f"weights: {len(hist['train_loss'])} epochs, {meta['dataset']['train_images']} training / "
           f"{meta['dataset']['val_images']} validation images, training time {hist['seconds']:.0f} s; "
           f"held-out cars: {', '.join(val_templates)}")
-    print(f"evaluation set: {'fresh renders, seed %d' % args.seed if not args.dataset else dataset} "
+    print(f"evaluation set: {'fresh %s renders, seed %d' % ('photo-like' if args.photo_like else 'classic', args.seed) if not args.dataset else dataset} "
           f"({len(rows)} images)")
     print("| measure | value |\n|---|---|")
     print(f"| top-1 accuracy, 24 classes (held-out cars) | {s['top1']:.3f} |")
@@ -196,7 +209,7 @@ def main_ablation(args) -> None:
         d = work / ("v_" + "".join(c for c in name if c.isalnum()))
         if not (d / "manifest.csv").exists():
             render_dataset(d, count=args.count, seed=args.seed, bodies_per_template=2, vary=vary, progress=True)
-        w = d / f"weights_e{args.epochs}.pt"
+        w = d / f"weights_e{args.epochs}{'' if zoom else '_nozoom'}.pt"
         if not w.exists():
             hist = train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1), progress=True)
             secs = hist.seconds
@@ -213,6 +226,221 @@ def main_ablation(args) -> None:
         print(f"| {name} | {s['top1']:.3f} | {s['within15']:.3f} | {s['front_rear_confusions']:.3f} |")
 
 
+# ----------------------------------------------------------------------------------- real photos
+
+REAL_PHOTOS = ROOT.parent / "shared" / "realphotos"
+
+
+def real_photo_set(root: Path) -> list[dict]:
+    """One dict per photo: image path, view estimate (deg), marks {name: (u, v)}, parts box."""
+    import json
+
+    parts = json.loads((root / "parts.json").read_text())
+    ids = {im["file_name"]: im["id"] for im in parts["images"]}
+    boxes: dict[int, list] = {}
+    for a in parts["annotations"]:
+        x, y, w, h = a["bbox"]
+        boxes.setdefault(a["image_id"], []).append((x, y, x + w, y + h))
+    out = []
+    for f in sorted((root / "keypoints").glob("*.json")):
+        d = json.loads(f.read_text())
+        b = np.array(boxes.get(ids.get(d["image"]), []), dtype=float)
+        out.append({"name": f.stem, "image": root / "images" / d["image"],
+                    "estimate_deg": float(d["view_estimate_deg"]) % 360.0,
+                    "marks": {k: tuple(v) for k, v in d["keypoints"].items()},
+                    "parts_box": (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max()) if len(b) else None})
+    return out
+
+
+def confusion_kind(pred_deg: float, true_deg: float) -> str:
+    """``ok`` (within 30°), else which mistake the prediction is nearest to: ``front/rear``
+    (θ ↔ 180° − θ, same side, ends swapped), ``left/right`` (θ ↔ 360° − θ, the mirror image),
+    ``both`` (θ ↔ θ + 180°) or ``other``."""
+    from carbody.view.labels import angular_difference
+
+    if angular_difference(pred_deg, true_deg) <= 30:
+        return "ok"
+    cands = {"front/rear": 180.0 - true_deg, "left/right": 360.0 - true_deg, "both": true_deg + 180.0}
+    kind, d = min(((k, float(angular_difference(pred_deg, a))) for k, a in cands.items()), key=lambda kv: kv[1])
+    return kind if d <= 30 else "other"
+
+
+def real_scores(pred_deg: np.ndarray, true_deg: np.ndarray) -> dict[str, float]:
+    from carbody.view.labels import angular_difference
+
+    err = angular_difference(pred_deg, true_deg)
+    kinds = [confusion_kind(p, t) for p, t in zip(pred_deg, true_deg)]
+    n = max(1, len(kinds))
+    return {"n": len(kinds), "within15": float((err <= 15).mean()), "within30": float((err <= 30).mean()),
+            "front_rear": sum(k in ("front/rear", "both") for k in kinds) / n,
+            "left_right": sum(k in ("left/right", "both") for k in kinds) / n,
+            "median_err": float(np.median(err)), "kinds": kinds, "err": err}
+
+
+def neighbour_mass(probs: np.ndarray) -> np.ndarray:
+    """(B,) probability that the view's class is the top class or one of its two neighbours."""
+    k = probs.argmax(1)
+    n = probs.shape[1]
+    idx = np.stack([(k - 1) % n, k, (k + 1) % n], 1)
+    return np.take_along_axis(probs, idx, 1).sum(1)
+
+
+def reliability_rows(conf: np.ndarray, hit: np.ndarray, edges=(0.0, 0.5, 0.7, 0.85, 0.95, 1.0001)) -> list:
+    """[(bin label, count, mean confidence, hit rate)] and the expected calibration error."""
+    rows, ece = [], 0.0
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        m = (conf >= lo) & (conf < hi)
+        if m.any():
+            rows.append((f"{lo:.2f}–{min(hi, 1):.2f}", int(m.sum()), float(conf[m].mean()), float(hit[m].mean())))
+            ece += m.mean() * abs(conf[m].mean() - hit[m].mean())
+    return rows, float(ece)
+
+
+def main_real(args) -> int:
+    import torch
+
+    from carbody.view.labels import CLASS_ANGLES_DEG, angular_difference
+    from carbody.view.predict import load_classifier, keypoint_box, predict_probabilities
+
+    root = Path(args.photos) if args.photos else REAL_PHOTOS
+    if not (root / "keypoints").is_dir():
+        print(f"skipped: no real photos at {root} (the shared folder is not here)")
+        return 0
+    torch.set_num_threads(1)
+    photos = real_photo_set(root)
+    _, meta = load_classifier(args.weights)
+    truth = np.array([p["estimate_deg"] for p in photos])
+    settings = {
+        "full photo": [None] * len(photos),
+        "car's box (part polygons)": [p["parts_box"] for p in photos],
+        "box of the marks (carbody view -k)": [keypoint_box(p["marks"]) for p in photos],
+    }
+    print(f"real photos: {len(photos)} from {root} (views estimated by eye, ±10°); weights "
+          f"{args.weights or 'shipped'}, temperature {float(meta.get('temperature', 1.0)):.2f}")
+    print("| input | within ±15° | within ±30° | front/rear confusions | left/right confusions | median error (°) |")
+    print("|---|---|---|---|---|---|")
+    results = {}
+    for label, boxes in settings.items():
+        probs = predict_probabilities([p["image"] for p in photos], args.weights, boxes=boxes)
+        from carbody.view.labels import continuous_estimate
+
+        pred = np.array([continuous_estimate(q) for q in probs])
+        s = real_scores(pred, truth)
+        results[label] = (s, probs, pred)
+        if label.startswith("box of the marks"):     # and what the marks' names say of the view
+            from carbody.view.marks import combine_with_marks
+
+            probs_m = np.array([combine_with_marks(q, p["marks"]) for q, p in zip(probs, photos)])
+            pred_m = np.array([continuous_estimate(q) for q in probs_m])
+            sm = real_scores(pred_m, truth)
+            results["marks' box and names"] = (sm, probs_m, pred_m)
+        print(f"| {label} | {s['within15']:.2f} | {s['within30']:.2f} | {s['front_rear']:.2f} | "
+              f"{s['left_right']:.2f} | {s['median_err']:.0f} |")
+    if "marks' box and names" in results:
+        sm = results["marks' box and names"][0]
+        print(f"| box of the marks × their names' view likelihood (carbody view -k) | {sm['within15']:.2f} | "
+              f"{sm['within30']:.2f} | {sm['front_rear']:.2f} | {sm['left_right']:.2f} | {sm['median_err']:.0f} |")
+        settings = {**settings, "marks' box and names": None}
+    if args.verbose:
+        print("| photo | estimate | " + " | ".join(settings) + " |\n|---|---|" + "---|" * len(settings))
+        for i, p in enumerate(photos):
+            cells = [f"{results[k][2][i]:.0f} ({results[k][0]['kinds'][i]})" for k in settings]
+            print(f"| {p['name']} | {truth[i]:.0f} | " + " | ".join(cells) + " |")
+    # Reliability on the car's box: P(top class or a neighbour) against |top class − estimate| ≤ 22.5°.
+    s, probs, _ = results["car's box (part polygons)"]
+    conf = neighbour_mass(probs)
+    hit = angular_difference(CLASS_ANGLES_DEG[probs.argmax(1)], truth) <= 22.5
+    rows, ece = reliability_rows(conf, hit)
+    print("reliability, car's box: P(the view's class is the top class or a neighbour) against "
+          "the top class lying within 22.5° of the estimate")
+    print("| P bin | photos | mean P | observed rate |\n|---|---|---|---|")
+    for label, n, c, h in rows:
+        print(f"| {label} | {n} | {c:.2f} | {h:.2f} |")
+    print(f"expected calibration error {ece:.3f}, mean P {conf.mean():.2f}, observed {hit.mean():.2f}")
+    return 0
+
+
+PHOTO_VARIANTS = ("classic renders (today's looks)", "photo-like, all changes", "- person-height camera",
+                  "- ground and contact shadow", "- environment-lit paint and glass", "- photo backdrops",
+                  "- blur/noise/JPEG artefacts", "- plates", "- blended bodies", "- zoom augmentation")
+
+
+def photo_variant(name: str, blends: int):
+    """(Variation, blends, zoom) of one row of the photo-like ablation."""
+    from carbody.view.dataset import Variation
+    from carbody.view.photo import PhotoLook
+
+    off = {"- person-height camera": "camera", "- ground and contact shadow": "ground",
+           "- environment-lit paint and glass": "environment", "- photo backdrops": "backdrop",
+           "- blur/noise/JPEG artefacts": "artefacts", "- plates": "plates"}
+    if name.startswith("classic"):
+        return Variation(), blends, False
+    photo = PhotoLook(**({off[name]: False} if name in off else {}))
+    return (Variation(photo=photo, photo_fraction=0.8), 0 if name == "- blended bodies" else blends,
+            name != "- zoom augmentation")
+
+
+def main_photo_ablation(args) -> None:
+    """One training set per row (same seed, bodies, split and size), the same epochs, each model
+    measured on the real photos' car boxes and on photo-like renders of the held-out cars."""
+    import json
+
+    from carbody.view.dataset import read_manifest, render_dataset
+    from carbody.view.labels import continuous_estimate
+    from carbody.view.predict import keypoint_box, predict_probabilities
+    from carbody.view.train import TrainConfig, train_view_classifier
+
+    work = Path(args.workdir or tempfile.mkdtemp(prefix="carbody-view-photo-ablation-"))
+    root = Path(args.photos) if args.photos else REAL_PHOTOS
+    photos = real_photo_set(root) if (root / "keypoints").is_dir() else []
+    truth = np.array([p["estimate_deg"] for p in photos])
+    only = [x.strip() for x in args.only.split(";")] if args.only else list(PHOTO_VARIANTS)
+    results_file = work / "results.json"
+    results = json.loads(results_file.read_text()) if results_file.exists() else {}
+    test_dir = work / "test_photo"
+    for name in PHOTO_VARIANTS:
+        if name not in only:
+            continue
+        vary, blends, zoom = photo_variant(name, args.blends)
+        # the zoom row trains on the renders of the all-changes row
+        same_renders = PHOTO_VARIANTS[1] if name == "- zoom augmentation" else name
+        d = work / ("v_" + "".join(c for c in same_renders if c.isalnum()))
+        if not (d / "manifest.csv").exists():
+            render_dataset(d, count=args.count, seed=args.seed, bodies_per_template=2, vary=vary, blends=blends,
+                           progress=True)
+        if not (test_dir / "manifest.csv").exists():
+            val = json.loads((d / "dataset.json").read_text())["validation_templates"]
+            evaluation_set(test_dir, args.test_count, args.seed + 1, val, photo_like=True)
+        w = d / f"weights_e{args.epochs}{'' if zoom else '_nozoom'}.pt"
+        secs = float("nan")
+        if not w.exists():
+            secs = train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1, zoom=zoom)).seconds
+        test_rows = read_manifest(test_dir)
+        r = scores(test_rows, classify(test_dir, str(w), test_rows))
+        row = {"renders_top1": r["top1"], "renders_within15": r["within15"], "train_s": secs}
+        for label, boxes in (("box", [p["parts_box"] for p in photos]), ("marks", [keypoint_box(p["marks"]) for p in photos]),
+                             ("full", [None] * len(photos))):
+            if photos:
+                pr = predict_probabilities([p["image"] for p in photos], str(w), boxes=boxes)
+                sc = real_scores(np.array([continuous_estimate(q) for q in pr]), truth)
+                row |= {f"{label}_{k}": sc[k] for k in ("within15", "within30", "front_rear", "left_right")}
+        results[name] = row
+        results_file.write_text(json.dumps(results, indent=1))
+        print(name, row, flush=True)
+    print(f"photo-like ablation: {args.count} renders per row (2 bodies per template, {args.blends} blends; "
+          f"about 80 % train), {args.epochs} epochs, 1 thread; real photos: car's box (part polygons); "
+          f"renders: {args.test_count} photo-like renders of the held-out cars")
+    print("| training renders | real ±15° | real ±30° | front/rear | left/right | marks box ±15° | full photo ±15° "
+          "| renders top-1 | renders ±15° |\n|---|---|---|---|---|---|---|---|---|")
+    for name in PHOTO_VARIANTS:
+        if name in results:
+            r = results[name]
+            print(f"| {name} | {r.get('box_within15', float('nan')):.2f} | {r.get('box_within30', float('nan')):.2f} | "
+                  f"{r.get('box_front_rear', float('nan')):.2f} | {r.get('box_left_right', float('nan')):.2f} | "
+                  f"{r.get('marks_within15', float('nan')):.2f} | {r.get('full_within15', float('nan')):.2f} | "
+                  f"{r['renders_top1']:.3f} | {r['renders_within15']:.3f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--weights", default=None, help="weights file (default: shipped)")
@@ -225,9 +453,27 @@ def main() -> None:
     ap.add_argument("--test-count", type=int, default=2400,
                     help="ablation: renders of which the held-out cars' share is the test set")
     ap.add_argument("--workdir", default=None, help="ablation: folder to keep data sets and weights")
-    ap.add_argument("--only", default=None, help="ablation: comma-separated variant names to run")
+    ap.add_argument("--only", default=None, help="ablation: comma-separated variant names to run (--photo-ablation: separated by ';')")
+    ap.add_argument("--photo-like", action="store_true", help="evaluate on photo-like renders (default classic)")
+    ap.add_argument("--templates", default=None,
+                    help="comma-separated templates to render for the evaluation (default: the weights' held-out cars)")
+    ap.add_argument("--keep", default=None, help="render the evaluation set into this folder (reuse with --dataset)")
+    ap.add_argument("--photo-ablation", action="store_true",
+                    help="ablation of the photo-like renders, measured on the real photos (see PHOTO_VARIANTS)")
+    ap.add_argument("--blends", type=int, default=20, help="photo ablation: blended bodies per training set")
+    ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
+    ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
+    ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
     args = ap.parse_args()
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
+    if args.real:
+        return main_real(args)
+    if args.photo_ablation:
+        if args.count == 480:
+            args.count = 2400
+        if args.test_count == 2400:
+            args.test_count = 480
+        return main_photo_ablation(args)
     if args.ablation:
         if args.count == 480:
             args.count = 1200

@@ -428,9 +428,9 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     prediction, source = None, "given"
     if prior is None:
         from carbody.view.labels import CLASS_ANGLES_DEG
-        from carbody.view.predict import predict_view
+        from carbody.view.predict import keypoint_box, predict_view
 
-        prediction = predict_view(rgb)
+        prediction = predict_view(rgb, box=keypoint_box(ann.points))   # the car, not the whole photo
         prior, source = ViewPrior.from_classifier(CLASS_ANGLES_DEG, prediction.probabilities,
                                                   elevation_deg=elevation_deg), "classifier"
     timings["view"] = time.perf_counter() - start

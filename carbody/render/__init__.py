@@ -14,10 +14,10 @@ The camera follows SPEC "Frames and units" (:mod:`carbody.camera`): θ = 0 front
 are glass, the rest paint.
 """
 from carbody.render.mesh import GLASS_REGIONS, FaceMesh, is_glass, mirrored, named_faces, tessellate
-from carbody.render.scene import Look, Scene, as_rgb, render_shape, render_views, save_png
+from carbody.render.scene import Environment, Look, Scene, as_rgb, render_shape, render_views, save_png
 
 __all__ = [
-    "GLASS_REGIONS", "FaceMesh", "Look", "Scene", "as_rgb", "is_glass", "mirrored",
+    "GLASS_REGIONS", "Environment", "FaceMesh", "Look", "Scene", "as_rgb", "is_glass", "mirrored",
     "named_faces", "render_shape", "render_views", "save_png",
     "tessellate",
 ]

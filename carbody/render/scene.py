@@ -72,11 +72,68 @@ class Look:
     ambient: float = 0.2
     diffuse: float = 0.8
     specular: float = 0.35
+    environment: "Environment | None" = None
 
     def colour_of(self, name: str) -> RGB:
         if name in self.colours:
             return as_rgb(self.colours[name])
         return as_rgb(self.glass) if is_glass(name) else as_rgb(self.paint)
+
+
+@dataclass
+class Environment:
+    """An outdoor light around the car, shaded per vertex on the CPU (paint and glass only):
+    a sky above the horizon and a darker ground below, seen in the clear coat and the glass by
+    reflection (Schlick's Fresnel: strongest at grazing angles, so a car's flanks mirror the
+    horizon as a photo shows), a sun for diffuse light and its highlight, sky light from above.
+
+    Attributes:
+        sky, ground: RGB of the sky (overhead) and of the ground, as reflected.
+        horizon_sharpness: how sharply the reflected horizon cuts (larger = sharper).
+        sun_azimuth_deg, sun_elevation_deg: sun direction in the car frame (θ convention).
+        sun: sun intensity; sky_light: the sky's diffuse light from above.
+        paint_reflectance, glass_reflectance: reflectance at normal incidence (Fresnel's F0 × gain).
+        interior: RGB seen through the glass (a dark cabin).
+    """
+
+    sky: RGB = (0.75, 0.82, 0.92)
+    ground: RGB = (0.22, 0.21, 0.2)
+    horizon_sharpness: float = 12.0
+    sun_azimuth_deg: float = 40.0
+    sun_elevation_deg: float = 45.0
+    sun: float = 0.75
+    sky_light: float = 0.45
+    paint_reflectance: float = 0.12
+    glass_reflectance: float = 0.3
+    interior: RGB = (0.04, 0.04, 0.045)
+
+
+def environment_shading(points: np.ndarray, normals: np.ndarray, camera: np.ndarray, base: np.ndarray,
+                        env: Environment, glass: bool, specular: float) -> np.ndarray:
+    """(n, 3) float RGB in [0, 1] of vertices (n, 3) with unit normals (n, 3) seen from
+    ``camera`` (3,) under ``env``; ``base`` is the paint colour (or the glass's tint)."""
+    v = camera[None, :] - points
+    v /= np.linalg.norm(v, axis=1, keepdims=True) + 1e-12
+    n = normals * np.where((normals * v).sum(1, keepdims=True) < 0, -1.0, 1.0)   # two-sided
+    ndv = np.clip((n * v).sum(1, keepdims=True), 0, 1)
+    r = 2 * ndv * n - v
+    t = 1 / (1 + np.exp(-env.horizon_sharpness * r[:, 2:3]))             # 0 ground .. 1 sky
+    sky = np.asarray(env.sky, dtype=float)
+    reflected = (1 - t) * np.asarray(env.ground) + t * sky * (0.75 + 0.25 * np.clip(r[:, 2:3], 0, 1))
+    fresnel = 1 - ndv
+    fresnel = fresnel ** 5
+    az, el = np.radians([env.sun_azimuth_deg, env.sun_elevation_deg])
+    sun = np.array([np.sin(az) * np.cos(el), -np.cos(az) * np.cos(el), np.sin(el)])
+    diffuse = np.clip(n @ sun, 0, 1)[:, None]
+    highlight = np.clip(r @ sun, 0, 1)[:, None] ** 40 * specular
+    if glass:
+        k = env.glass_reflectance + (1 - env.glass_reflectance) * fresnel
+        out = (1 - k) * (np.asarray(env.interior) + 0.3 * np.asarray(base)) + k * reflected + 1.5 * highlight
+    else:
+        k = env.paint_reflectance + (1 - env.paint_reflectance) * fresnel * 0.8
+        light = env.sky_light * (0.75 + 0.25 * n[:, 2:3]) + env.sun * diffuse
+        out = (1 - k) * np.asarray(base) * light + k * reflected + highlight
+    return np.clip(out, 0, 1)
 
 
 def _quiet_vtk() -> None:
@@ -182,12 +239,17 @@ class Scene:
         self._renderer.SetBackgroundAlpha(0.0)
 
         self._actors: dict[str, Any] = {}
+        self._polys: dict[str, Any] = {}
+        self._shading: dict[str, tuple] = {}
         groups: dict[str, list[FaceMesh]] = {}
         for m in meshes:
             groups.setdefault(m.name, []).append(m)
         for name, ms in groups.items():
             mapper = vtkPolyDataMapper()
-            mapper.SetInputData(_polydata(ms))
+            poly = _polydata(ms)
+            mapper.SetInputData(poly)
+            mapper.ScalarVisibilityOff()
+            self._polys[name] = poly
             actor = vtkActor()
             actor.SetMapper(mapper)
             self._renderer.AddActor(actor)
@@ -215,8 +277,43 @@ class Scene:
         key.SetIntensity(float(look.light_intensity))
         fill.SetIntensity(0.35)
 
+    def _shade_environment(self, name: str, actor, look: Look) -> bool:
+        """Per-vertex colours from ``look.environment`` on paint and glass actors; False when
+        the actor keeps VTK's lighting (no environment, or a detail named in ``look.colours``)."""
+        from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+
+        mapper = actor.GetMapper()
+        env = look.environment
+        if env is None or name in look.colours or getattr(self, "_projection", None) is None:
+            mapper.ScalarVisibilityOff()
+            return False
+        poly = self._polys[name]
+        if name not in self._shading:
+            pts = vtk_to_numpy(poly.GetPoints().GetData()).astype(float)
+            nrm = vtk_to_numpy(poly.GetPointData().GetNormals()).astype(float)
+            nrm /= np.linalg.norm(nrm, axis=1, keepdims=True) + 1e-12
+            self._shading[name] = (pts, nrm)
+        pts, nrm = self._shading[name]
+        rgb = environment_shading(pts, nrm, np.asarray(self._projection[0]), np.asarray(look.colour_of(name)),
+                                  env, is_glass(name), look.specular)
+        arr = numpy_to_vtk(np.ascontiguousarray((rgb * 255 + 0.5).astype(np.uint8)), deep=True)
+        arr.SetName("shade")
+        poly.GetPointData().SetScalars(arr)
+        mapper.SetColorModeToDirectScalars()
+        mapper.ScalarVisibilityOn()
+        poly.Modified()
+        prop = actor.GetProperty()
+        prop.SetAmbient(1.0)
+        prop.SetDiffuse(0.0)
+        prop.SetSpecular(0.0)
+        prop.LightingOff()
+        return True
+
     def _set_materials(self, look: Look) -> None:
         for name, actor in self._actors.items():
+            if self._shade_environment(name, actor, look):
+                continue
+            actor.GetProperty().LightingOn()
             prop = actor.GetProperty()
             prop.SetColor(*look.colour_of(name))
             glass = is_glass(name) and name not in look.colours
@@ -271,6 +368,29 @@ class Scene:
         # Window centre moves the projection so the shape's box is centred, then by the offset.
         cam.SetWindowCenter(*self._projection[-1])
         self._renderer.ResetCameraClippingRange()
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min (3,), max (3,)) corners of the meshes' bounding box, model units."""
+        return self._points.min(0), self._points.max(0)
+
+    def pixel_rays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(camera position (3,), ray directions (h, w, 3)) through the pixel centres of the last
+        render, model units; perspective only (the rays of an orthographic camera are parallel).
+
+        Raises:
+            RenderError: no render yet, or the last one was orthographic.
+        """
+        if getattr(self, "_projection", None) is None or not self._projection[6]:
+            raise RenderError("pixel_rays() needs a perspective render() first")
+        pos, r, w, f, half, aspect, _, (wx, wy) = self._projection
+        W, H = self.size
+        nx = (np.arange(W) + 0.5) / W * 2 - 1
+        ny = 1 - (np.arange(H) + 0.5) / H * 2
+        x = (nx[None, :] + wx) * half * aspect
+        y = (ny[:, None] + wy) * half
+        rays = f[None, None, :] + x[..., None] * r[None, None, :] + y[..., None] * w[None, None, :]
+        return np.asarray(pos, dtype=float), rays
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixel positions (N, 2) = (u, v) of (N, 3) model points in the last render

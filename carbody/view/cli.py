@@ -19,6 +19,16 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-background", action="store_true", help="plain white backgrounds (ablation)")
     p.add_argument("--no-colour", action="store_true", help="one paint, glass and light (ablation)")
     p.add_argument("--no-elevation", action="store_true", help="fixed 10 deg elevation, centred, orthographic (ablation)")
+    p.add_argument("--photo-like", action="store_true",
+                   help="photo-like renders: a camera at a person's height 3-15 m away, ground and contact "
+                        "shadow, environment-lit paint and glass, plates, street backdrops, blur/noise/JPEG")
+    p.add_argument("--photo-off", default="", metavar="PARTS",
+                   help="with --photo-like, switch these parts off (ablation; comma-separated: camera, "
+                        "ground, environment, backdrop, artefacts, plates)")
+    p.add_argument("--photo-fraction", type=float, default=1.0,
+                   help="with --photo-like, the share of photo-like images (the rest classic; default 1)")
+    p.add_argument("--blends", type=int, default=0,
+                   help="this many more bodies, each a random mix of two training templates")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="render on a running Dask cluster (tcp://host:8786) whose workers see OUT_DIR at the "
                         "same path; the images are the same bit for bit as in one process")
@@ -41,7 +51,21 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "constant (the paper's setting)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--plot", default=None, help="loss/accuracy PNG (default: OUTPUT with .png)")
+    p.add_argument("--init", default=None, metavar="W.pt", help="start from these weights instead of from scratch")
+    p.add_argument("--zoom", action="store_true", help="augment with a random zoom of 0.85-1.2 (an inexact box)")
+    p.add_argument("--no-calibrate", action="store_true",
+                   help="do not fit the temperature on the validation split after training")
     p.set_defaults(func=_train_view)
+
+    p = sub.add_parser("calibrate-view", help="fit the view classifier's temperature on rendered held-out cars",
+                       description="Fit one temperature T (logits / T before the softmax) that minimises the "
+                                   "negative log-likelihood of a rendered data set's images of the cars the "
+                                   "weights were not trained on, with mirror averaging as carbody view does, and store it "
+                                   "in the weights file, so the probabilities reported are calibrated.")
+    p.add_argument("dataset", help="folder written by render-dataset (its images of the weights' held-out cars are used)")
+    p.add_argument("--weights", required=True, help="weights file to calibrate (rewritten in place)")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    p.set_defaults(func=_calibrate_view)
 
     p = sub.add_parser("view", help="tell the view angle of a car picture",
                        description="Classify the view angle of a car picture with the shipped MobileNetV2: "
@@ -50,16 +74,38 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("image", help="picture file (PNG, JPEG, ...; gray, RGB or RGBA)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.add_argument("--weights", default=None, help="weights file (default: the shipped ones)")
+    crop = p.add_mutually_exclusive_group()
+    crop.add_argument("--box", type=float, nargs=4, metavar=("X0", "Y0", "X1", "Y1"), default=None,
+                      help="the car's box in pixels (u right, v down): the picture is cropped to it as "
+                           "the training renders frame their cars; much better when the car fills "
+                           "little of the photo")
+    crop.add_argument("-k", "--keypoints", default=None, metavar="FILE",
+                      help="keypoint file of the picture (project JSON, COCO, labelme): crop to the box "
+                           "of its marks, grown by 12 %% of its larger side, and weigh the views by "
+                           "which of them could see the marked keypoints")
     p.set_defaults(func=_view)
 
 
 def _render_dataset(args) -> int:
     from carbody.view.dataset import DEFAULT_COUNT, Variation, render_dataset
 
+    from carbody.errors import ViewError
+    from carbody.view.photo import PhotoLook
+
+    photo = None
+    if args.photo_like:
+        off = {x.strip() for x in args.photo_off.split(",") if x.strip()}
+        unknown = off - set(PhotoLook.__dataclass_fields__)
+        if unknown:
+            raise ViewError(f"--photo-off: unknown part {sorted(unknown)[0]!r} "
+                            f"(one of {', '.join(PhotoLook.__dataclass_fields__)})")
+        photo = PhotoLook(**{k: k not in off for k in PhotoLook.__dataclass_fields__})
+    if not 0.0 <= args.photo_fraction <= 1.0:
+        raise ViewError(f"--photo-fraction must be within 0..1, got {args.photo_fraction}")
     vary = Variation(background=not (args.plain or args.no_background), colour=not (args.plain or args.no_colour),
-                     elevation=not (args.plain or args.no_elevation))
+                     elevation=not (args.plain or args.no_elevation), photo=photo, photo_fraction=args.photo_fraction)
     kw = dict(count=args.count or DEFAULT_COUNT, seed=args.seed, bodies_per_template=args.bodies_per_template,
-              vary=vary, progress=not args.quiet)
+              vary=vary, blends=args.blends, progress=not args.quiet)
     if args.scheduler is None and args.workers is None:
         manifest = render_dataset(args.out_dir, **kw)
     else:
@@ -77,10 +123,29 @@ def _train_view(args) -> int:
 
     check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
-                      threads=args.threads, schedule=args.schedule)
+                      threads=args.threads, schedule=args.schedule, zoom=args.zoom,
+                      init=args.init)
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot, progress=not args.quiet)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "
           f"({hist.seconds:.0f} s)")
+    if not args.no_calibrate:
+        from carbody.view.calibrate import calibrate_weights
+
+        r = calibrate_weights(args.output, args.dataset, progress=False)
+        print(f"temperature {r['temperature']:.3f} on {r['images']} held-out renders (ECE {r['ece_before']:.3f} "
+              f"-> {r['ece_after']:.3f})")
+    return 0
+
+
+def _calibrate_view(args) -> int:
+    import torch
+
+    from carbody.view.calibrate import calibrate_weights
+
+    torch.set_num_threads(max(1, args.threads))
+    r = calibrate_weights(args.weights, args.dataset)
+    print(f"{args.weights}: temperature {r['temperature']:.3f} on {r['images']} held-out renders; "
+          f"NLL {r['nll_before']:.3f} -> {r['nll_after']:.3f}, ECE {r['ece_before']:.3f} -> {r['ece_after']:.3f}")
     return 0
 
 
@@ -89,14 +154,26 @@ def _view(args) -> int:
 
     from carbody.view.predict import predict_view
 
-    p = predict_view(args.image, weights=args.weights)
+    from carbody.view.predict import keypoint_box
+
+    box, marks = args.box, None
+    if args.keypoints:
+        from carbody.fit.keypoints_io import read_keypoints
+
+        marks = read_keypoints(args.keypoints).points
+        box = keypoint_box(marks)
+    p = predict_view(args.image, weights=args.weights, box=box, marks=marks)
     if args.json:
-        print(json.dumps(p.as_dict(), indent=1))
+        out = p.as_dict()
+        if box is not None:
+            out["box"] = [round(float(v), 1) for v in box]
+        print(json.dumps(out, indent=1))
         return 0
     top = sorted(range(len(p.probabilities)), key=lambda k: -p.probabilities[k])[:3]
     from carbody.view.labels import CLASS_ANGLES_DEG
 
     others = ", ".join(f"{int(CLASS_ANGLES_DEG[k])}° {p.probabilities[k]:.2f}" for k in top)
+    where = "" if box is None else " in box " + " ".join(f"{v:.0f}" for v in box)
     print(f"view {int(p.class_deg)}° ({p.side}; paper class {int(p.paper_class_deg)}°), estimate "
-          f"{p.theta_deg:.1f}°, confidence {p.confidence:.2f}  [top: {others}]")
+          f"{p.theta_deg:.1f}°, confidence {p.confidence:.2f}  [top: {others}]{where}")
     return 0

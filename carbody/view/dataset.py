@@ -33,6 +33,7 @@ import numpy as np
 
 from carbody.errors import ViewError
 from carbody.view.labels import CLASS_ANGLES_DEG, N_CLASSES
+from carbody.view.photo import PhotoLook
 
 #: Side of the stored images, pixels (the network resizes to 64).
 IMAGE_SIZE = 128
@@ -61,12 +62,18 @@ class Variation:
         elevation: elevation 0°–30°, roll, perspective, fill and offset jitter (else φ = 10°,
             orthographic, centred at 85 % fill).
         angle_jitter_deg: θ jitter inside its class, degrees.
+        photo: photo-like renders (:class:`carbody.view.photo.PhotoLook`: a person's camera,
+            ground and contact shadow, environment-lit paint and glass, backdrops, plates, camera
+            artefacts) instead of the classic looks above; None: classic.
+        photo_fraction: with ``photo``, the share of images that are photo-like (the others classic).
     """
 
     background: bool = True
     colour: bool = True
     elevation: bool = True
     angle_jitter_deg: float = 3.0
+    photo: "PhotoLook | None" = None
+    photo_fraction: float = 1.0
 
 
 # ----------------------------------------------------------------------------------------- bodies
@@ -100,6 +107,27 @@ def choose_bodies(library, templates_manifest: list[dict], per_template: int, se
                 body_id=f"{_slug(name)}-{n:02d}", template=name, model_index=int(j),
                 factors=tuple(float(f) for f in library.factors[j]),
                 control_points_mm=library.points(int(j)) * wb / 1000.0, tyre_radius_mm=radius))
+    return out
+
+
+def blend_bodies(library, templates_manifest: list[dict], among: list[str], count: int, seed: int) -> list[BodySpec]:
+    """``count`` bodies of more shapes than the templates: a random mix a·A + (1 − a)·B
+    (a uniform in 0.2–0.8) of two library models of two different templates of ``among``, at
+    the mixed wheelbase and tyre (seeded). Named ``blend-NN``, template ``"A + B"``."""
+    rng = np.random.default_rng([seed, 5])
+    tyre = {row["name"]: float(row.get("tyre_radius_mm") or 0.0) for row in templates_manifest}
+    index = {n: t for t, n in enumerate(library.template_names)}
+    out = []
+    for n in range(count if len(among) >= 2 else 0):
+        a_name, b_name = rng.choice(sorted(among), size=2, replace=False)
+        ja, jb = (int(rng.choice(np.flatnonzero(library.template_index == index[x]))) for x in (a_name, b_name))
+        a = rng.uniform(0.2, 0.8)
+        wa, wb = (float(library.template_wheelbase_mm[index[x]]) for x in (a_name, b_name))
+        wbase = a * wa + (1 - a) * wb
+        cp = (a * library.points(ja) + (1 - a) * library.points(jb)) * wbase / 1000.0
+        radius = a * (tyre.get(a_name) or 0.115 * wa) + (1 - a) * (tyre.get(b_name) or 0.115 * wb)
+        out.append(BodySpec(body_id=f"blend-{n:02d}", template=f"{a_name} + {b_name}", model_index=-1,
+                            factors=(float(a), 0.0, 0.0, 0.0), control_points_mm=cp, tyre_radius_mm=radius))
     return out
 
 
@@ -167,6 +195,8 @@ DETAILS = (
     ("headlight", "front_face", 0.55, 0.93, 0.06, 0.32, -1.0),
     ("grille", "front_face", 0.0, 0.45, 0.30, 0.62, -1.0),
     ("taillight", "tail", 0.58, 0.95, 0.05, 0.30, 1.0),
+    ("plate", "front_face", 0.0, 0.27, 0.66, 0.86, -1.0),
+    ("plate", "tail", 0.0, 0.27, 0.45, 0.66, 1.0),
 )
 
 
@@ -342,6 +372,51 @@ def shoot(scene, shot: Shot, look, car_length: float, rng: np.random.Generator, 
     return img
 
 
+def shoot_photo(scene, spec: BodySpec, class_index: int, rng: np.random.Generator, vary: Variation):
+    """One photo-like shot (:mod:`carbody.view.photo`) of class ``class_index``: (Shot, image)."""
+    from carbody.render import Look
+    from carbody.view import photo as ph
+
+    pl = vary.photo
+    theta = (CLASS_ANGLES_DEG[class_index] + rng.uniform(-1, 1) * vary.angle_jitter_deg) % 360.0
+    mirrored = theta > 180.0 or (theta in (0.0, 180.0) and rng.random() < 0.5)
+    render_theta = 360.0 - theta if mirrored else theta
+    lo, hi = scene.bounds
+    car_length = float(hi[1] - lo[1])
+    ground_z = -float(spec.tyre_radius_mm)
+    if pl.camera:
+        elevation, dist = ph.person_camera(rng, lo, hi, ground_z, scene.radius)
+    else:
+        elevation, dist = rng.uniform(0.0, 30.0), max(rng.uniform(1.6, 6.0) * car_length, 1.15 * scene.radius)
+    roll = rng.normal(0.0, 1.5)
+    fill = rng.uniform(0.62, 0.95) if rng.random() < 0.9 else rng.uniform(0.95, 1.1)
+    offset = tuple(rng.uniform(-0.05, 0.05, 2))
+    paint, glass, colours, env = ph.photo_looks(rng, pl)
+    look = Look(paint=tuple(paint), glass=tuple(glass), colours=colours, background=(0.0, 0.0, 0.0),
+                environment=env, light_azimuth_deg=rng.uniform(-80, 80), light_elevation_deg=rng.uniform(10, 70),
+                light_intensity=rng.uniform(0.6, 1.1), ambient=rng.uniform(0.15, 0.4), specular=rng.uniform(0.2, 0.6))
+    premult, alpha = scene.render(render_theta, elevation, roll, look=look, distance=dist, fill=fill,
+                                  offset=offset, return_alpha=True)
+    if pl.backdrop:
+        back, kind = ph.backdrop(rng, IMAGE_SIZE), "photo"
+    else:
+        back, kind = random_background(rng)
+        back = back.astype(np.float32) / 255.0
+    bg = ph.ground_and_shadow(scene, rng, ground_z, lo, hi, back, pl.ground)
+    img = premult.astype(np.float32) / 255.0 + (1 - alpha[..., None]) * bg
+    img = np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)
+    if mirrored:
+        img = img[:, ::-1].copy()
+    if pl.artefacts:
+        img = ph.artefacts(img, rng)
+    else:
+        img = np.clip(img + rng.normal(0, rng.uniform(0, 4), img.shape), 0, 255).astype(np.uint8)
+    shot = Shot(class_index, float(theta), float(render_theta), bool(mirrored), float(elevation), float(roll),
+                float(dist / car_length), float(fill), (float(offset[0]), float(offset[1])), kind,
+                tuple(float(v) for v in paint))
+    return shot, img
+
+
 # ----------------------------------------------------------------------------------------- writer
 
 MANIFEST_FIELDS = ["file", "class_index", "class_deg", "theta_deg", "elevation_deg", "roll_deg", "mirrored",
@@ -363,7 +438,7 @@ IMAGES_PER_TASK = 64
 def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 0,
                    bodies_per_template: int = 4, vary: Variation = Variation(),
                    templates: list[str] | None = None, progress: bool = True,
-                   surface_body: Callable | None = None, client=None) -> Path:
+                   surface_body: Callable | None = None, client=None, blends: int = 0) -> Path:
     """Render the data set into ``out_dir`` (see module docstring); returns the manifest path.
 
     Args:
@@ -372,6 +447,8 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
         bodies_per_template: the template itself plus this many − 1 library expansions.
         vary: what varies between images.
         templates: restrict to these template names (default all).
+        blends: this many more bodies, each a random mix of two training templates
+            (:func:`blend_bodies`), all in the training split.
         surface_body: ``Wireframe -> Body`` (default :func:`carbody.surface.build_body`; on a
             cluster it must pickle: a module-level function).
         client: a ``distributed.Client`` (:func:`carbody.cluster.connect`) to surface the bodies
@@ -405,6 +482,8 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
             raise ViewError(f"unknown template {sorted(unknown)[0]!r}")
         bodies = [b for b in bodies if b.template in templates]
     val_templates = split_templates(sorted({b.template for b in bodies}), seed)
+    if blends:     # mixes of training templates only, so no held-out car leaks into training
+        bodies += blend_bodies(library, rows, sorted({b.template for b in bodies} - val_templates), blends, seed)
 
     # Spread images: body b gets count // n (+1 for the first count % n), classes cycled.
     per_body = [count // len(bodies) + (i < count % len(bodies)) for i in range(len(bodies))]
@@ -426,7 +505,7 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
         "count": len(manifest_rows), "seed": seed, "image_size": IMAGE_SIZE, "classes_deg": CLASS_ANGLES_DEG.tolist(),
         "bodies": [b.body_id for b in bodies if b.body_id not in {k["body"] for k in skipped}],
         "skipped_bodies": skipped, "validation_templates": sorted(val_templates),
-        "variation": asdict(vary), "bodies_per_template": bodies_per_template}, indent=1))
+        "variation": asdict(vary), "bodies_per_template": bodies_per_template, "blends": blends}, indent=1))
     tmp.replace(out / "manifest.csv")
     return out / "manifest.csv"
 
@@ -495,8 +574,11 @@ def render_images(out: str | Path, spec: BodySpec, b: int, meshes, images: list[
     rows = []
     for i, k in images:
         rng = np.random.default_rng([seed, 4, b, i])
-        shot, look = sample_shot(rng, k, vary)
-        img = shoot(scene, shot, look, car_length, rng, vary)
+        if vary.photo is None or rng.random() >= vary.photo_fraction:
+            shot, look = sample_shot(rng, k, vary)
+            img = shoot(scene, shot, look, car_length, rng, vary)
+        else:
+            shot, img = shoot_photo(scene, spec, k, rng, vary)
         rel = Path("images") / f"{int(CLASS_ANGLES_DEG[k]):03d}" / f"{spec.body_id}_{i:04d}.png"
         (out / rel).parent.mkdir(exist_ok=True)
         save_png(img, out / rel)

@@ -124,7 +124,7 @@ def export_weights(pt_path: str | Path, npz_path: str | Path) -> dict:
     meta = {"format": NPZ_FORMAT, "num_classes": num_classes, "width_mult": width_mult,
             "input_size": int(payload.get("input_size", 64)), "mean": float(payload.get("mean", 0.5)),
             "std": float(payload.get("std", 0.25)), "classes_deg": list(payload.get("classes_deg", [])),
-            "layers": layers, "source": pt_path.name,
+            "temperature": float(payload.get("temperature", 1.0)), "layers": layers, "source": pt_path.name,
             "source_sha256": hashlib.sha256(pt_path.read_bytes()).hexdigest()}
     np.savez_compressed(npz_path, meta=np.array(json.dumps(meta)), **arrays)
     return meta
@@ -289,11 +289,12 @@ def load_numpy_classifier(npz_path: str | Path | None = None) -> NumpyMobileNetV
 
 
 def probabilities(images: np.ndarray, npz_path: str | Path | None = None,
-                  mirror_average: bool = True) -> np.ndarray:
+                  mirror_average: bool = True, temperature: float | None = None) -> np.ndarray:
     """(B, 24) class probabilities of (B, S, S, 3) uint8 square pictures (from
     ``carbody.view.train.to_square_input``), as ``carbody.view.predict.predict_probabilities``
     gives them (float32) but through the numpy network: with ``mirror_average``, one pass over
-    the pictures and their mirror images, the mirror's classes mapped back and the two averaged."""
+    the pictures and their mirror images, the mirror's classes mapped back and the two averaged.
+    ``temperature`` divides the logits (None: the calibrated one the weights carry, else 1)."""
     net = load_numpy_classifier(npz_path)
     x = np.asarray(images)
     if x.ndim != 4 or x.shape[3] != 3:
@@ -301,7 +302,8 @@ def probabilities(images: np.ndarray, npz_path: str | Path | None = None,
     n = len(x)
     if mirror_average:
         x = np.concatenate([x, x[:, :, ::-1]])
-    p = softmax(net.logits(net.network_input(x)).astype(np.float64))
+    t = float(net.meta.get("temperature", 1.0)) if temperature is None else float(temperature)
+    p = softmax(net.logits(net.network_input(x)).astype(np.float64) / t)
     if mirror_average:
         p = (p[:n] + p[n:][:, MIRROR_PERMUTATION]) / 2
     return p.astype(np.float32)

@@ -231,40 +231,145 @@ def _load_classifier(path_text: str, mtime_ns: int):  # mtime_ns: cache key only
     return model, meta
 
 
+#: A car's box fills this fraction of the square crop's side (the renders: 0.6–0.95 of the frame).
+BOX_FILL = 0.8
+
+#: The box of the keypoints grows by this fraction of its larger side on every side before the
+#: crop: the marks sit inside the car's outline (pillars, arches, bumper centres), and a photo's
+#: marks often leave the far end of the car unmarked.
+KEYPOINT_BOX_MARGIN = 0.12
+
+
+def check_box(box, image_size: tuple[int, int] | None = None) -> tuple[float, float, float, float]:
+    """(x0, y0, x1, y1) pixels as floats, checked: finite, x1 > x0, y1 > y0, overlapping the picture.
+
+    Raises:
+        ViewError: anything else.
+    """
+    try:
+        b = np.asarray(box, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ViewError(f"a box is four numbers x0 y0 x1 y1, got {box!r}") from None
+    if b.shape != (4,) or not np.all(np.isfinite(b)):
+        raise ViewError(f"a box is four finite numbers x0 y0 x1 y1, got {box!r}")
+    x0, y0, x1, y1 = (float(v) for v in b)
+    if not (x1 - x0 >= 2 and y1 - y0 >= 2):
+        raise ViewError(f"box {x0:g} {y0:g} {x1:g} {y1:g} is empty (need x1 > x0 and y1 > y0, 2 px at least)")
+    if image_size is not None:
+        w, h = image_size
+        if x1 <= 0 or y1 <= 0 or x0 >= w or y0 >= h:
+            raise ViewError(f"box {x0:g} {y0:g} {x1:g} {y1:g} lies outside the {w}x{h} px picture")
+    return x0, y0, x1, y1
+
+
+def keypoint_box(points, margin: float = KEYPOINT_BOX_MARGIN) -> tuple[float, float, float, float] | None:
+    """The box (x0, y0, x1, y1) of keypoints ({name: (u, v)} or (N, 2) pixels), grown by
+    ``margin`` × its larger side on every side; None when the finite ones span no box (fewer
+    than two, or all within 2 px): then the whole picture is the best guess, and the fit says
+    what is wrong with the marks."""
+    try:
+        uv = np.asarray(list(points.values()) if hasattr(points, "values") else points, dtype=float).reshape(-1, 2)
+    except (TypeError, ValueError):
+        return None
+    uv = uv[np.all(np.isfinite(uv), axis=1)]
+    if len(uv) < 2:
+        return None
+    (x0, y0), (x1, y1) = uv.min(0), uv.max(0)
+    pad = margin * max(x1 - x0, y1 - y0)
+    if max(x1 - x0, y1 - y0) < 2:
+        return None
+    pad_y = max(pad, (2 - (y1 - y0)) / 2)      # marks on one line still make a box
+    pad_x = max(pad, (2 - (x1 - x0)) / 2)
+    return (float(x0 - pad_x), float(y0 - pad_y), float(x1 + pad_x), float(y1 + pad_y))
+
+
+def crop_to_box(image: np.ndarray, box, fill: float = BOX_FILL) -> np.ndarray:
+    """The square around a car's box (x0, y0, x1, y1) pixels in which the box's larger side
+    spans ``fill`` of the square, as the renders frame their cars: (s, s, 3) uint8. Parts of the
+    square outside the picture repeat its border.
+
+    Raises:
+        ViewError: a bad box (see :func:`check_box`).
+    """
+    import cv2
+
+    h, w = image.shape[:2]
+    x0, y0, x1, y1 = check_box(box, (w, h))
+    side = max(x1 - x0, y1 - y0) / fill
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    a0, b0 = int(round(cx - side / 2)), int(round(cy - side / 2))
+    s = max(2, int(round(side)))
+    pad = ((max(0, -b0), max(0, b0 + s - h)), (max(0, -a0), max(0, a0 + s - w)))
+    crop = image[max(0, b0):min(h, b0 + s), max(0, a0):min(w, a0 + s)]
+    if any(pad[0]) or any(pad[1]):
+        crop = cv2.copyMakeBorder(crop, *pad[0], *pad[1], cv2.BORDER_REPLICATE)
+    return np.ascontiguousarray(crop)
+
+
 def predict_probabilities(images: list | np.ndarray, weights: str | Path | None = None,
-                          mirror_average: bool = True) -> np.ndarray:
+                          mirror_average: bool = True, boxes: list | None = None,
+                          temperature: float | None = None) -> np.ndarray:
     """(B, 24) class probabilities of a batch of pictures (paths or arrays): through the numpy
     network (:mod:`carbody.view.numpy_net`, no torch to import) for the shipped weights or an
-    ``.npz``, through torch for a ``.pt`` file."""
+    ``.npz``, through torch for a ``.pt`` file.
+
+    Args:
+        boxes: per picture, None or the car's box (x0, y0, x1, y1) pixels to crop to
+            (:func:`crop_to_box`).
+        temperature: divides the logits before the softmax; None: the weights' calibrated one
+            (1 when they have none).
+    """
     from carbody.view.numpy_net import numpy_weights_for, probabilities
     from carbody.view.train import to_square_input
 
-    x = np.stack([to_square_input(read_image(im)) for im in images])   # bad input first
+    boxes = list(boxes) if boxes is not None else [None] * len(images)
+    if len(boxes) != len(images):
+        raise ViewError(f"{len(boxes)} boxes for {len(images)} pictures")
+    if temperature is not None and not float(temperature) > 0:
+        raise ViewError(f"the temperature must be positive, got {temperature}")
+    pics = [read_image(im) for im in images]
+    x = np.stack([to_square_input(pic if b is None else crop_to_box(pic, b)) for pic, b in zip(pics, boxes)])
     npz = numpy_weights_for(weights)
     if npz is not None:
-        return probabilities(x, npz, mirror_average)
+        return probabilities(x, npz, mirror_average, temperature)
     import torch
 
     from carbody.view.train import to_tensor
 
-    model, _ = load_classifier(str(weights) if weights else None)
+    model, meta = load_classifier(str(weights) if weights else None)
+    t = float(meta.get("temperature", 1.0)) if temperature is None else float(temperature)
+    if not t > 0:
+        raise ViewError(f"the temperature must be positive, got {t}")
     n = len(x)
     if mirror_average:          # one forward pass over the pictures and their mirror images
         x = np.concatenate([x, x[:, :, ::-1]])
     with torch.inference_mode():
-        p = torch.softmax(model(to_tensor(x)), 1).numpy()
+        p = torch.softmax(model(to_tensor(x)) / t, 1).numpy()
     if mirror_average:
         p = (p[:n] + p[n:][:, MIRROR_PERMUTATION]) / 2
     return p
 
 
-def predict_view(image, weights: str | Path | None = None, mirror_average: bool = True) -> ViewPrediction:
+def predict_view(image, weights: str | Path | None = None, mirror_average: bool = True,
+                 box=None, marks=None) -> ViewPrediction:
     """The view angle of one car picture (path or array); see :class:`ViewPrediction`.
+
+    Args:
+        box: the car's box (x0, y0, x1, y1) pixels, e.g. :func:`keypoint_box` of its marks; the
+            picture is cropped to it as the renders frame their cars (much better on photos
+            where the car fills little of the frame). None: the whole picture.
+        marks: names of the keypoints marked on the picture (or a {name: (u, v)} map): their
+            view likelihood (:mod:`carbody.view.marks`) multiplies the probabilities, which
+            settles front against rear and left against right.
 
     Raises:
         ImageError: unreadable, empty or tiny picture.
-        ViewError: missing or bad weights.
+        ViewError: missing or bad weights, a bad box.
     """
-    p = predict_probabilities([image], weights, mirror_average)[0]
+    p = predict_probabilities([image], weights, mirror_average, boxes=[box])[0]
+    if marks:
+        from carbody.view.marks import combine_with_marks
+
+        p = combine_with_marks(p, list(marks))
     k = int(np.argmax(p))
     return ViewPrediction(k, float(CLASS_ANGLES_DEG[k]), continuous_estimate(p), float(p[k]), p)

@@ -1,0 +1,197 @@
+"""Photo-like renders: what a street photo of a car has that a plain render lacks.
+
+Each switch of :class:`PhotoLook` is one row of the ablation table (docs/view_classifier.md):
+
+- ``camera``: a perspective camera held at a person's height (0.4–2.0 m above the ground) 3–15 m
+  from the car, so elevation and perspective follow from where a photographer stands;
+- ``ground``: the ground plane (asphalt, concrete, tiles, with paint lines) seen through the same
+  camera, up to a wall or the horizon, and the car's soft contact shadow on it;
+- ``environment``: paint and glass shaded by an outdoor light (:class:`carbody.render.Environment`):
+  sky and ground mirrored in the clear coat and in the glass, dark cabin behind the glass;
+- ``backdrop``: a photo-like backdrop above the ground (walls, buildings, trees, parked cars,
+  sky: blurred blocks of muted colours) instead of stripes and colour noise;
+- ``artefacts``: lens blur, sensor noise, white balance, vignetting and JPEG compression;
+- ``plates``: number plates front and rear (else painted over).
+
+Everything is numpy on the rendered picture and the scene's camera rays (no extra VTK actors),
+so a shot costs one render.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Paint colours as they are common on the road (white, black, silver and grey most of all).
+COMMON_PAINT = np.array([
+    (0.92, 0.92, 0.91), (0.96, 0.96, 0.95), (0.05, 0.05, 0.06), (0.12, 0.12, 0.13), (0.72, 0.73, 0.75),
+    (0.55, 0.56, 0.58), (0.35, 0.36, 0.38), (0.62, 0.06, 0.07), (0.10, 0.20, 0.50), (0.08, 0.10, 0.22),
+    (0.82, 0.76, 0.62), (0.40, 0.28, 0.18), (0.90, 0.45, 0.05), (0.85, 0.72, 0.10), (0.15, 0.32, 0.20),
+])
+COMMON_PAINT_P = np.array([0.14, 0.12, 0.1, 0.06, 0.14, 0.09, 0.07, 0.07, 0.05, 0.03, 0.04, 0.02, 0.02, 0.02, 0.03])
+
+
+@dataclass(frozen=True)
+class PhotoLook:
+    """Which photo-like changes a data set's renders get (all on by default)."""
+
+    camera: bool = True
+    ground: bool = True
+    environment: bool = True
+    backdrop: bool = True
+    artefacts: bool = True
+    plates: bool = True
+
+
+def person_camera(rng: np.random.Generator, lo: np.ndarray, hi: np.ndarray, ground_z: float,
+                  radius: float) -> tuple[float, float]:
+    """(elevation φ deg, distance from the box centre, model units) of a camera held 0.4–2.0 m
+    above the ground 3–15 m (horizontally, log-uniform) from a car whose box is lo..hi (mm)."""
+    centre_z = (lo[2] + hi[2]) / 2
+    height = rng.uniform(400.0, 2000.0) if rng.random() < 0.85 else rng.uniform(2000.0, 3500.0)
+    horizontal = float(np.exp(rng.uniform(np.log(3000.0), np.log(15000.0))))
+    dz = ground_z + height - centre_z
+    dist = max(float(np.hypot(horizontal, dz)), 1.15 * radius)
+    elevation = float(np.degrees(np.arcsin(np.clip(dz / dist, -0.9, 0.9))))
+    return elevation, dist
+
+
+def _smooth_noise(rng: np.random.Generator, shape: tuple[int, int], cells: int) -> np.ndarray:
+    import cv2
+
+    small = rng.normal(0, 1, (max(2, cells), max(2, cells))).astype(np.float32)
+    return cv2.resize(small, (shape[1], shape[0]), interpolation=cv2.INTER_CUBIC)
+
+
+def backdrop(rng: np.random.Generator, size: int) -> np.ndarray:
+    """(size, size, 3) float [0, 1]: a blurred street, showroom or parking backdrop."""
+    import cv2
+
+    h = w = size
+    kind = rng.choice(["street", "showroom", "trees", "wall"], p=[0.4, 0.25, 0.2, 0.15])
+    sky = np.array([0.62, 0.74, 0.9]) * rng.uniform(0.8, 1.15) if rng.random() < 0.7 else np.full(3, rng.uniform(0.75, 0.97))
+    t = np.linspace(0, 1, h)[:, None, None]
+    img = np.broadcast_to(sky * (1 - 0.25 * t) + 0.25 * t * np.full(3, 0.9), (h, w, 3)).copy()
+    muted = lambda: np.clip(rng.uniform(0.15, 0.9) * (0.7 + 0.3 * rng.uniform(0, 1, 3)), 0, 1)  # noqa: E731
+    if kind == "trees":
+        green = np.array([0.18, 0.3, 0.14]) * rng.uniform(0.6, 1.4)
+        top = int(h * rng.uniform(0.05, 0.5))
+        line = (top + 0.12 * h * _smooth_noise(rng, (1, w), 8)[0]).astype(int)
+        for x in range(w):
+            img[max(0, line[x]):, x] = green
+        img += 0.08 * _smooth_noise(rng, (h, w), 24)[..., None]
+    elif kind in ("street", "showroom", "wall"):
+        wall = muted() if kind != "showroom" else np.full(3, rng.uniform(0.7, 0.95)) * (0.85 + 0.15 * rng.uniform(0, 1, 3))
+        top = int(h * rng.uniform(0.0, 0.6)) if kind != "showroom" else 0
+        img[top:] = wall
+        for _ in range(rng.integers(2, 10)):     # windows, doors, signs, posts, other cars
+            bw, bh = int(rng.integers(w // 20, w // 3)), int(rng.integers(h // 20, h // 2))
+            x0, y0 = int(rng.integers(-bw // 2, w)), int(rng.integers(0, h))
+            img[max(0, y0):y0 + bh, max(0, x0):x0 + bw] = muted()
+        if kind == "showroom" and rng.random() < 0.6:   # a strip of ceiling lights
+            y = int(rng.integers(0, h // 4))
+            img[y:y + max(1, h // 40)] = 1.0
+    img += rng.uniform(0.0, 0.06) * rng.normal(0, 1, img.shape)
+    img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), rng.uniform(0.5, 2.5))
+    return np.clip(img, 0, 1)
+
+
+def ground_and_shadow(scene, rng: np.random.Generator, ground_z: float, lo: np.ndarray, hi: np.ndarray,
+                      back: np.ndarray, with_ground: bool) -> np.ndarray:
+    """(h, w, 3) float background of the last (perspective) render: the ground plane z = ground_z
+    up to a wall 8–60 m away or the horizon, the car's soft contact shadow on it, ``back`` above."""
+    pos, rays = scene.pixel_rays()
+    if not with_ground:
+        return back
+    rz = rays[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (ground_z - pos[2]) / rz
+    hit = (rz < 0) & np.isfinite(t) & (t > 0)
+    gx = pos[0] + np.where(hit, t, 0) * rays[..., 0]
+    gy = pos[1] + np.where(hit, t, 0) * rays[..., 1]
+    centre = (lo[:2] + hi[:2]) / 2
+    depth = np.hypot(gx - centre[0], gy - centre[1])
+    wall = float(np.exp(rng.uniform(np.log(8000.0), np.log(60000.0))))
+    hit &= depth < wall
+    kind = rng.choice(["asphalt", "concrete", "tiles"], p=[0.5, 0.3, 0.2])
+    base = {"asphalt": rng.uniform(0.18, 0.42), "concrete": rng.uniform(0.45, 0.7),
+            "tiles": rng.uniform(0.5, 0.85)}[kind]
+    colour = base * (0.92 + 0.08 * rng.uniform(0, 1, 3))
+    tex = np.sin(gx / rng.uniform(200, 900) + 3 * np.sin(gy / 1700.0)) * 0.02
+    if kind == "tiles":
+        step = rng.uniform(400, 1200)
+        tex += -0.08 * ((np.abs((gx / step) % 1 - 0.5) > 0.47) | (np.abs((gy / step) % 1 - 0.5) > 0.47))
+    grain = rng.normal(0, rng.uniform(0.01, 0.05), rz.shape)
+    ground = colour[None, None, :] * (1 + tex + grain)[..., None]
+    if rng.random() < 0.5:                     # parking / lane lines
+        across = rng.random() < 0.5
+        coord = gx if across else gy
+        step = rng.uniform(2400, 5500)
+        line = np.abs(((coord + rng.uniform(0, step)) / step) % 1 - 0.5) * step > step / 2 - 60
+        ground = np.where(line[..., None], np.array([0.85, 0.85, 0.8]) if rng.random() < 0.7 else
+                          np.array([0.85, 0.7, 0.15]), ground)
+    # contact shadow: dark under the car, soft edges, a little longer on the sun's side
+    half = (hi[:2] - lo[:2]) / 2 * np.array([0.95, 0.97])
+    dx = np.maximum(np.abs(gx - centre[0]) - half[0], 0)
+    dy = np.maximum(np.abs(gy - centre[1]) - half[1], 0)
+    out_d = np.hypot(dx, dy)
+    inside = np.minimum(half[0] - np.abs(gx - centre[0]), half[1] - np.abs(gy - centre[1]))
+    soft = rng.uniform(150, 600)
+    shade = np.where(inside > 0, 0.15 + 0.25 * np.exp(-np.maximum(inside, 0) / 300.0),
+                     1 - 0.6 * np.exp(-out_d / soft))
+    shade = 1 - (1 - shade) * rng.uniform(0.6, 1.0)
+    ground = ground * shade[..., None]
+    return np.where(hit[..., None], ground, back)
+
+
+def artefacts(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Lens blur, white balance, vignetting, sensor noise and JPEG compression: uint8 in and out."""
+    import cv2
+
+    x = img.astype(np.float32) / 255.0
+    if rng.random() < 0.5:
+        x = cv2.GaussianBlur(x, (0, 0), rng.uniform(0.3, 1.0))
+    x = x * (1 + rng.normal(0, 0.04, 3)).astype(np.float32)             # white balance
+    x = np.clip(x, 0, 1) ** rng.uniform(0.85, 1.15)                      # exposure curve
+    if rng.random() < 0.4:
+        h, w = x.shape[:2]
+        yy, xx = np.mgrid[0:h, 0:w]
+        r2 = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / (0.5 * (h * h + w * w))
+        x = x * (1 - rng.uniform(0.1, 0.35) * r2)[..., None]
+    x = x + rng.normal(0, rng.uniform(0, 0.025), x.shape)
+    out = np.clip(x * 255 + 0.5, 0, 255).astype(np.uint8)
+    if rng.random() < 0.8:
+        ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 95))])
+        if ok:
+            out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1].copy()
+    return out
+
+
+def photo_looks(rng: np.random.Generator, photo: PhotoLook):
+    """(paint RGB, glass RGB, detail colours, Environment or None) of one photo-like shot."""
+    from carbody.render import Environment
+
+    paint = np.clip(COMMON_PAINT[rng.choice(len(COMMON_PAINT), p=COMMON_PAINT_P / COMMON_PAINT_P.sum())]
+                    + rng.normal(0, 0.03, 3), 0, 1)
+    glass = np.clip(np.array([0.05, 0.06, 0.07]) * rng.uniform(0.6, 2.0), 0, 1)
+    plate = tuple(np.clip(np.array([0.92, 0.92, 0.9]) * rng.uniform(0.75, 1.0) + rng.normal(0, 0.02, 3), 0, 1))
+    colours = {"tyre": tuple(np.full(3, rng.uniform(0.03, 0.09))),
+               "rim": tuple(np.full(3, rng.uniform(0.25, 0.8))), "underbody": (0.02, 0.02, 0.02),
+               "headlight": tuple(np.clip(rng.uniform(0.55, 0.95) + rng.normal(0, 0.03, 3), 0, 1)),
+               "grille": tuple(np.full(3, rng.uniform(0.02, 0.2))),
+               "taillight": (rng.uniform(0.45, 0.85), rng.uniform(0.0, 0.08), rng.uniform(0.0, 0.08)),
+               "plate": plate if photo.plates else tuple(paint)}
+    env = None
+    if photo.environment:
+        overcast = rng.random() < 0.35
+        sky = (np.full(3, rng.uniform(0.75, 0.95)) if overcast else
+               np.clip(np.array([0.6, 0.72, 0.92]) * rng.uniform(0.85, 1.15), 0, 1))
+        env = Environment(sky=tuple(sky), ground=tuple(np.full(3, rng.uniform(0.12, 0.4))),
+                          horizon_sharpness=float(rng.uniform(6, 25)),
+                          sun_azimuth_deg=float(rng.uniform(0, 360)), sun_elevation_deg=float(rng.uniform(15, 75)),
+                          sun=float(rng.uniform(0.15, 0.35) if overcast else rng.uniform(0.45, 0.9)),
+                          sky_light=float(rng.uniform(0.65, 0.9) if overcast else rng.uniform(0.45, 0.7)),
+                          paint_reflectance=float(rng.uniform(0.06, 0.2)),
+                          glass_reflectance=float(rng.uniform(0.15, 0.45)),
+                          interior=tuple(np.full(3, rng.uniform(0.02, 0.08))))
+    return paint, glass, colours, env
