@@ -104,14 +104,6 @@ class Library:
             template_classes=[c for i, c in enumerate(self.template_classes) if i not in drop],
         )
 
-    def without_class(self, template: str) -> "Library":
-        """This library less ``template`` and every other template of its class: how the fit does
-        on a kind of car it has never seen (a pickup with no pickup among the templates)."""
-        if template not in self.template_names:
-            raise LibraryError(f"unknown template {template!r} (known: {', '.join(self.template_names)})")
-        kind = self.template_classes[self.template_names.index(template)]
-        return self.without(*(n for n, c in zip(self.template_names, self.template_classes) if c == kind))
-
 
 def check_library(library) -> None:
     """Refuse anything but a :class:`Library` (or None: the shipped one) where one is asked for.

@@ -193,12 +193,7 @@ class Reconstruction:
             OutputError: the folder or one of the files in it cannot be written, or one of them
                 is the photo or the keypoint file.
         """
-        from carbody.outputs import output_folder, staged
-
-        with output_folder(out_dir) as out:
-            check_output_dir(out, inputs={"the photo": self.image_path})
-            with staged([out / name for name in OUTPUT_FILES]) as at:
-                self._write_all(lambda name: at(out / name), truth)
+        out = self._write_files(out_dir, truth, OUTPUT_FILES)
         keys = ("wireframe", "body", "assembly", "overlay", "render", "report", "summary")
         return {key: out / name for key, name in zip(keys, OUTPUT_FILES)}
 
@@ -207,43 +202,47 @@ class Reconstruction:
         ``report.json`` (``outcome`` "failed", ``error``) and ``summary.txt``, all or nothing;
         the other :data:`OUTPUT_FILES` an earlier run left in the folder are taken away with it,
         so that none is taken for this run's. Returns the files written."""
-        from carbody.fit.overlay import draw_overlay, write_image
+        out = self._write_files(out_dir, truth, FAILED_FILES)
+        return [out / name for name in FAILED_FILES]
+
+    def _write_files(self, out_dir: str | Path, truth, names: tuple[str, ...]) -> Path:
+        """Write ``names`` (of :data:`OUTPUT_FILES`) into ``out_dir`` through one staging folder,
+        taking away the folder's other outputs; returns the folder."""
         from carbody.outputs import output_folder, staged
 
-        names = ("overlay.png", "report.json", "summary.txt")
         with output_folder(out_dir) as out:
             check_output_dir(out, inputs={"the photo": self.image_path})
             with staged([out / n for n in names], remove=[out / n for n in OUTPUT_FILES if n not in names]) as at:
-                write_image(at(out / "overlay.png"), draw_overlay(self.image[..., ::-1].copy(), self.fit))
-                report = self.report(truth)
-                report["files"] = sorted(names)
-                at(out / "report.json").write_text(json.dumps(report, indent=1))
-                at(out / "summary.txt").write_text(self.summary(report))
-        return [out / n for n in names]
+                self._write_all(lambda name: at(out / name), truth, names)
+        return out
 
-    def _write_all(self, at: Callable[[str], Path], truth) -> None:
-        """Write :data:`OUTPUT_FILES`, each where ``at(its name)`` says."""
+    def _write_all(self, at: Callable[[str], Path], truth, names: tuple[str, ...]) -> None:
+        """Write ``names``, each where ``at(its name)`` says."""
         from carbody.fit.overlay import draw_overlay, write_image
-        from carbody.render import render_views
-        from carbody.surface.body import write_body
-        from carbody.wireframe import write_wireframe
 
         start = time.perf_counter()
-        write_wireframe(at("wireframe.step"), self.wireframe, both_halves=True)
-        write_body(at("body.step"), self.body)
-        write_assembly(at("car.step"), self)
+        if "body.step" in names:
+            from carbody.render import render_views
+            from carbody.surface.body import write_body
+            from carbody.wireframe import write_wireframe
+
+            write_wireframe(at("wireframe.step"), self.wireframe, both_halves=True)
+            write_body(at("body.step"), self.body)
+            write_assembly(at("car.step"), self)
+            render_views(self.body, at("body.png"), size=(480, 340))
         # the overlay is drawn with OpenCV, which works in BGR
         write_image(at("overlay.png"), draw_overlay(self.image[..., ::-1].copy(), self.fit))
-        render_views(self.body, at("body.png"), size=(480, 340))
         self.timings_s["write"] = time.perf_counter() - start
         report = self.report(truth)
-        report["files"] = sorted(OUTPUT_FILES)
+        report["files"] = sorted(names)
         at("report.json").write_text(json.dumps(report, indent=1))
         at("summary.txt").write_text(self.summary(report))
 
 
 #: The files :meth:`Reconstruction.write` puts into its folder.
 OUTPUT_FILES = ("wireframe.step", "body.step", "car.step", "overlay.png", "body.png", "report.json", "summary.txt")
+#: What :meth:`Reconstruction.write_failed` puts there: what shows why a run failed after its fit.
+FAILED_FILES = ("overlay.png", "report.json", "summary.txt")
 
 
 def prepare_output_dir(out_dir: str | Path) -> Path:

@@ -40,6 +40,15 @@ def library():
 
 
 @pytest.fixture(scope="session")
+def example_reconstruction():
+    """``carbody.reconstruct`` of the shipped example (told 30°), once per test process."""
+    import carbody
+
+    examples = REPO / "examples"
+    return carbody.reconstruct(examples / "car.png", examples / "car_keypoints.json", view=30)
+
+
+@pytest.fixture(scope="session")
 def first_library(library):
     """The library of the first round's 14 templates (the manifest's first 14): there the pickup,
     the roadster and the MPV each have no sibling, as the tests of what the fit does for a car

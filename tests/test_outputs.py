@@ -34,10 +34,8 @@ def leftovers(folder: Path) -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def result():
-    import carbody
-
-    return carbody.reconstruct(PHOTO, KEYPOINTS, view=30)
+def result(example_reconstruction):
+    return example_reconstruction
 
 
 @pytest.fixture(scope="module")

@@ -17,10 +17,8 @@ PHOTO, KEYPOINTS, TRUTH = EXAMPLES / "car.png", EXAMPLES / "car_keypoints.json",
 
 
 @pytest.fixture(scope="module")
-def result():
-    import carbody
-
-    return carbody.reconstruct(PHOTO, KEYPOINTS, view=30)
+def result(example_reconstruction):
+    return example_reconstruction
 
 
 @pytest.fixture(scope="module")

@@ -109,7 +109,7 @@ def diagnose(result, scorer, hypothesis, policy: FitPolicy, view_search: dict | 
         if kept:
             continue
         point = result.wireframe.control_points[slot.point_index] * slot.sign
-        px = float(np.linalg.norm(_projected(result, point[None])[0] - uv))
+        px = float(np.linalg.norm(result.project_points(point) - uv))
         rejected[clicked_name(slot.name, hypothesis.renamed)] = RejectedMark(
             (float(uv[0]), float(uv[1])), px, HIDDEN if hidden else MISPLACED,
             looks_like(result, slot.name, uv, policy))
@@ -144,26 +144,8 @@ def looks_like(result, name: str, uv: np.ndarray, policy: FitPolicy) -> str | No
     named = keypoint_slots()
     names = [n for n in named if n != name]
     cp = result.wireframe.control_points
-    where = _projected(result, np.array([cp[named[n].point_index] * named[n].sign for n in names]))
+    where = result.project_points(np.array([cp[named[n].point_index] * named[n].sign for n in names]))
     d = np.linalg.norm(where - np.asarray(uv, dtype=float), axis=1)
-    if not np.isfinite(d).any():
-        return None
-    j = int(np.nanargmin(d))
+    j = int(np.argmin(d))
     return names[j] if d[j] < policy.looks_like_spread * keypoint_spread(result.uv) else None
 
-
-def _projected(result, points_mm: np.ndarray) -> np.ndarray:
-    """(n, 2) photo pixels of car points; NaN for one at or behind the camera (a car bent by
-    marks that contradict each other can pass through a pinhole camera's position)."""
-    from carbody.errors import AngleError
-
-    try:
-        return result.project_points(points_mm)
-    except AngleError:
-        out = np.full((len(points_mm), 2), np.nan)
-        for i, p in enumerate(points_mm):
-            try:
-                out[i] = result.project_points(p[None])[0]
-            except AngleError:
-                pass
-        return out

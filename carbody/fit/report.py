@@ -250,7 +250,6 @@ def refusal_line(result) -> str | None:
     :class:`~carbody.fit.diagnostics.FitDiagnostics`: a fit that merely fits poorly, a car the
     library lacks, is given out with a note)."""
     from carbody.fit.solve import keypoint_spread
-    from carbody.policy import FIT_POLICY
 
     diagnostics = result.diagnostics
     if diagnostics is None or not diagnostics.contradicts:
@@ -260,7 +259,7 @@ def refusal_line(result) -> str | None:
     worst = sorted(residual, key=lambda n: -residual[n])[:3]
     evidence = diagnostics.evidence_per_coordinate
     why = (f"the marks contradict each other: no car fits them (−log evidence {evidence:.0f} per coordinate, "
-           f"where a photo's own marks stay under 10)" if evidence is not None and evidence > FIT_POLICY.refuse_evidence
+           f"where a photo's own marks stay under 10)" if diagnostics.fits_poorly
            else f"the fitted car misses the marks by {mean:.0f} px on average "
                 f"({100 * mean / keypoint_spread(result.uv):.0f} % of their spread)")
     return (f"{why}; furthest: " + ", ".join(f"{n} ({residual[n]:.0f} px)" for n in worst)
