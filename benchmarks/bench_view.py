@@ -50,12 +50,16 @@ def evaluation_set(out: Path, count: int, seed: int, templates: list[str], photo
 
 
 def classify(dataset: Path, weights: str | None, rows: list[dict]) -> np.ndarray:
-    """(N, 24) probabilities of the rows' images."""
+    """(N, 24) probabilities of the rows' images; a framed photo-like render is cropped to its
+    car's box, as ``carbody view --box`` crops a photo."""
+    from carbody.view.dataset import row_box
     from carbody.view.predict import predict_probabilities
 
     probs = []
     for i in range(0, len(rows), 64):
-        probs.append(predict_probabilities([dataset / r["file"] for r in rows[i:i + 64]], weights))
+        chunk = rows[i:i + 64]
+        probs.append(predict_probabilities([dataset / r["file"] for r in chunk], weights,
+                                           boxes=[row_box(r) for r in chunk]))
     return np.concatenate(probs)
 
 

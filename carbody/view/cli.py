@@ -24,7 +24,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "shadow, environment-lit paint and glass, plates, street backdrops, blur/noise/JPEG")
     p.add_argument("--photo-off", default="", metavar="PARTS",
                    help="with --photo-like, switch these parts off (ablation; comma-separated: camera, "
-                        "ground, environment, backdrop, artefacts, plates)")
+                        "ground, environment, backdrop, artefacts, plates, framing, details, sharp)")
     p.add_argument("--photo-fraction", type=float, default=1.0,
                    help="with --photo-like, the share of photo-like images (the rest classic; default 1)")
     p.add_argument("--blends", type=int, default=0,
@@ -53,6 +53,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", default=None, help="loss/accuracy PNG (default: OUTPUT with .png)")
     p.add_argument("--init", default=None, metavar="W.pt", help="start from these weights instead of from scratch")
     p.add_argument("--zoom", action="store_true", help="augment with a random zoom of 0.85-1.2 (an inexact box)")
+    p.add_argument("--input-size", type=int, default=64, metavar="PX",
+                   help="network input side in pixels (default 64, the paper's)")
+    p.add_argument("--label-smoothing", type=float, default=0.0, metavar="EPS",
+                   help="cross-entropy label smoothing (default 0)")
+    p.add_argument("--resume", action="store_true",
+                   help="go on from OUTPUT.ckpt (written after every epoch) if an earlier run was interrupted")
     p.add_argument("--no-calibrate", action="store_true",
                    help="do not fit the temperature on the validation split after training")
     p.set_defaults(func=_train_view)
@@ -124,7 +130,8 @@ def _train_view(args) -> int:
     check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                       threads=args.threads, schedule=args.schedule, zoom=args.zoom,
-                      init=args.init)
+                      init=args.init, input_size=args.input_size, label_smoothing=args.label_smoothing,
+                      resume=args.resume)
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot, progress=not args.quiet)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "
           f"({hist.seconds:.0f} s)")

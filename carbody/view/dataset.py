@@ -230,8 +230,115 @@ def detail_meshes(meshes, grid: int = 6):
     return out + mirrored(out)
 
 
-def body_meshes(spec: BodySpec, surface_body: Callable | None = None):
-    """Tessellated body (both halves, region names) plus wheels, lamps and grille, mm."""
+#: Ranges of the photo-like details (:func:`photo_detail_meshes`), as fractions of the region's
+#: half-width (x, from the symmetry plane) and height (z, from the region's top), drawn per body:
+#: (name, region, (x0 range), (x1 range), (z0 range), (height range), outward y, probability).
+PHOTO_DETAILS = (
+    ("headlight", "front_face", (0.42, 0.68), (0.86, 0.97), (0.0, 0.12), (0.14, 0.36), -1.0, 1.0),
+    ("grille", "front_face", (0.0, 0.0), (0.28, 0.62), (0.06, 0.34), (0.14, 0.42), -1.0, 1.0),
+    ("grille", "front_face", (0.0, 0.0), (0.3, 0.85), (0.58, 0.76), (0.07, 0.2), -1.0, 0.7),   # lower intake
+    ("plate", "front_face", (0.0, 0.0), (0.22, 0.3), (0.45, 0.7), (0.14, 0.22), -1.0, 1.0),
+    ("taillight", "tail", (0.45, 0.72), (0.88, 0.98), (0.0, 0.14), (0.12, 0.32), 1.0, 1.0),
+    ("plate", "tail", (0.0, 0.0), (0.22, 0.3), (0.3, 0.6), (0.16, 0.24), 1.0, 1.0),
+    ("grille", "tail", (0.0, 0.0), (0.5, 0.9), (0.82, 0.9), (0.08, 0.14), 1.0, 0.35),           # black diffuser
+)
+
+
+def _surface_patch(name: str, region: list, x0: float, x1: float, z0: float, z1: float, out_y: float,
+                   grid: int = 10, lift: float = 4.0):
+    """A (grid × grid) sheet lying on a region of the left half, ``lift`` mm off the surface along
+    its normal: each grid point (x, z) is cast along y onto the region's triangles and takes the
+    outermost hit (toward ``out_y``), so the sheet follows the surface round its corners instead
+    of floating behind a curved tail. Grid cells with a corner off the region are left out.
+    None when nothing lands on the region."""
+    from carbody.render.mesh import FaceMesh
+
+    v = np.concatenate([m.vertices for m in region])
+    t = np.concatenate([m.triangles + o for m, o in zip(region, np.cumsum([0] + [len(m.vertices) for m in region])[:-1])])
+    t = t[v[t].mean(axis=1)[:, 0] >= 0]
+    if len(t) == 0:
+        return None
+    used = v[np.unique(t)]
+    xmax, ztop, zbot = used[:, 0].max(), used[:, 2].max(), used[:, 2].min()
+    gx, gz = np.meshgrid(np.linspace(x0, x1, grid) * xmax, ztop - np.linspace(z0, z1, grid) * (ztop - zbot))
+    q = np.c_[gx.ravel(), gz.ravel()]                                  # (g², 2) in (x, z)
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    e0, e1 = (b - a)[:, [0, 2]], (c - a)[:, [0, 2]]
+    den = e0[:, 0] * e1[:, 1] - e1[:, 0] * e0[:, 1]
+    ok = np.abs(den) > 1e-9
+    d = q[:, None, :] - a[None, :, [0, 2]]                              # (g², m, 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = (d[..., 0] * e1[:, 1] - e1[:, 0] * d[..., 1]) / den
+        w = (e0[:, 0] * d[..., 1] - d[..., 0] * e0[:, 1]) / den
+        inside = ok & (u >= -1e-6) & (w >= -1e-6) & (u + w <= 1 + 1e-6)
+        y = np.where(inside, a[:, 1] + u * (b - a)[:, 1] + w * (c - a)[:, 1], 0.0)
+    score = np.where(inside, y * out_y, -np.inf)
+    best = score.argmax(axis=1)
+    hit = np.isfinite(score.max(axis=1))
+    if hit.sum() < 4:
+        return None
+    normal = np.cross(b - a, c - a)[best]
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True) + 1e-12
+    normal *= np.where(normal[:, 1] * out_y < 0, -1.0, 1.0)[:, None]
+    verts = np.c_[q[:, 0], y[np.arange(len(q)), best], q[:, 1]] + lift * normal
+    i, k = np.meshgrid(np.arange(grid - 1), np.arange(grid - 1), indexing="ij")
+    first = (i * grid + k).ravel()
+    quads = np.c_[first, first + 1, first + grid, first + grid + 1]
+    quads = quads[hit[quads].all(axis=1)]
+    if len(quads) == 0:
+        return None
+    tris = np.r_[quads[:, [0, 1, 2]], quads[:, [1, 3, 2]]]
+    if out_y < 0:                                       # counter-clockwise seen from outside
+        tris = tris[:, ::-1]
+    return FaceMesh(name, np.where(hit[:, None], verts, 0.0), tris)
+
+
+def _box_mesh(name: str, lo: np.ndarray, hi: np.ndarray):
+    """An axis-aligned box lo..hi (mm) as a closed mesh, normals outward."""
+    from carbody.render.mesh import FaceMesh
+
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    tris = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    return FaceMesh(name, corners, tris)
+
+
+def photo_detail_meshes(meshes, control_points_mm: np.ndarray, rng: np.random.Generator):
+    """What tells a car's front from its rear on a photo, drawn per body from :data:`PHOTO_DETAILS`
+    (``rng`` chooses sizes and places): head lamps, grille and a lower air intake, plates, tail
+    lamps and a diffuser as sheets on the front face and tail (:func:`_surface_patch`), and door
+    mirrors (``"mirror"``, painted unless the look says black) at the front lower corner of the
+    side glass, standing 150–220 mm out of the body. Both sides; mm."""
+    from carbody.render.mesh import mirrored
+    from carbody.topology import load_topology
+
+    out = []
+    for name, region, x0r, x1r, z0r, hr, out_y, prob in PHOTO_DETAILS:
+        if rng.random() >= prob:
+            continue
+        reg = [m for m in meshes if m.name == region]
+        x0, x1, z0 = rng.uniform(*x0r), rng.uniform(*x1r), rng.uniform(*z0r)
+        patch = _surface_patch(name, reg, x0, x1, z0, min(z0 + rng.uniform(*hr), 1.0), out_y) if reg else None
+        if patch is not None:
+            out.append(patch)
+    topo = load_topology()
+    cp = np.asarray(control_points_mm, dtype=float)
+    names = [k.name for k in topo.keypoints]
+    corner = cp[topo.keypoint_point_indices[names.index("window_front_bottom")]]
+    half_width = float(cp[:, 0].max())
+    length, height = rng.uniform(90, 150), rng.uniform(100, 150)
+    y0 = corner[1] + rng.uniform(40, 160)
+    z0 = corner[2] - rng.uniform(0, 40)
+    out.append(_box_mesh("mirror", np.array([corner[0] - 20.0, y0, z0]),
+                         np.array([half_width + rng.uniform(150, 220), y0 + length, z0 + height])))
+    return out + mirrored(out)
+
+
+def body_meshes(spec: BodySpec, surface_body: Callable | None = None, photo_details: bool = False,
+                seed: int = 0):
+    """Tessellated body (both halves, region names) plus wheels, lamps and grille, mm; with
+    ``photo_details`` the lamps, grilles and mirrors of :func:`photo_detail_meshes` (drawn from
+    ``seed`` and the body's name) instead of the fixed :data:`DETAILS`."""
     from carbody.render import tessellate
     from carbody.wireframe import Wireframe
 
@@ -246,7 +353,14 @@ def body_meshes(spec: BodySpec, surface_body: Callable | None = None):
     else:
         body = surface_body(wireframe)
     meshes = tessellate(body)
-    return meshes + wheel_meshes(spec.control_points_mm, spec.tyre_radius_mm) + detail_meshes(meshes)
+    if photo_details:
+        import zlib
+
+        rng = np.random.default_rng([seed, 6, zlib.crc32(spec.body_id.encode())])
+        details = photo_detail_meshes(meshes, spec.control_points_mm, rng)
+    else:
+        details = detail_meshes(meshes)
+    return meshes + wheel_meshes(spec.control_points_mm, spec.tyre_radius_mm) + details
 
 
 # ----------------------------------------------------------------------------------------- looks
@@ -311,6 +425,7 @@ class Shot:
     offset: tuple[float, float]
     background: str
     paint: tuple[float, float, float]
+    box: tuple[float, float, float, float] | None = None   # the car's box (x0, y0, x1, y1), pixels
 
 
 def sample_shot(rng: np.random.Generator, class_index: int, vary: Variation):
@@ -385,12 +500,17 @@ def shoot_photo(scene, spec: BodySpec, class_index: int, rng: np.random.Generato
     car_length = float(hi[1] - lo[1])
     ground_z = -float(spec.tyre_radius_mm)
     if pl.camera:
-        elevation, dist = ph.person_camera(rng, lo, hi, ground_z, scene.radius)
+        elevation, dist = ph.person_camera(rng, lo, hi, ground_z, scene.radius,
+                                           render_theta if pl.framing else None)
     else:
         elevation, dist = rng.uniform(0.0, 30.0), max(rng.uniform(1.6, 6.0) * car_length, 1.15 * scene.radius)
     roll = rng.normal(0.0, 1.5)
-    fill = rng.uniform(0.62, 0.95) if rng.random() < 0.9 else rng.uniform(0.95, 1.1)
-    offset = tuple(rng.uniform(-0.05, 0.05, 2))
+    if pl.framing:     # room around the car for the photo's frame and the crop (photo_frame_crop)
+        fill = rng.uniform(0.6, 0.78)
+        offset = tuple(rng.uniform(-0.03, 0.03, 2))
+    else:
+        fill = rng.uniform(0.62, 0.95) if rng.random() < 0.9 else rng.uniform(0.95, 1.1)
+        offset = tuple(rng.uniform(-0.05, 0.05, 2))
     paint, glass, colours, env = ph.photo_looks(rng, pl)
     look = Look(paint=tuple(paint), glass=tuple(glass), colours=colours, background=(0.0, 0.0, 0.0),
                 environment=env, light_azimuth_deg=rng.uniform(-80, 80), light_elevation_deg=rng.uniform(10, 70),
@@ -398,7 +518,7 @@ def shoot_photo(scene, spec: BodySpec, class_index: int, rng: np.random.Generato
     premult, alpha = scene.render(render_theta, elevation, roll, look=look, distance=dist, fill=fill,
                                   offset=offset, return_alpha=True)
     if pl.backdrop:
-        back, kind = ph.backdrop(rng, IMAGE_SIZE), "photo"
+        back, kind = ph.backdrop(rng, IMAGE_SIZE, pl.sharp), "photo"
     else:
         back, kind = random_background(rng)
         back = back.astype(np.float32) / 255.0
@@ -407,20 +527,32 @@ def shoot_photo(scene, spec: BodySpec, class_index: int, rng: np.random.Generato
     img = np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)
     if mirrored:
         img = img[:, ::-1].copy()
+        alpha = alpha[:, ::-1]
     if pl.artefacts:
-        img = ph.artefacts(img, rng)
+        img = ph.artefacts(img, rng, pl.sharp)
     else:
         img = np.clip(img + rng.normal(0, rng.uniform(0, 4), img.shape), 0, 255).astype(np.uint8)
+    box = None
+    if pl.framing:
+        rows, cols = np.nonzero(alpha > 0.5)
+        if len(rows):
+            box = (float(cols.min()), float(rows.min()), float(cols.max() + 1), float(rows.max() + 1))
     shot = Shot(class_index, float(theta), float(render_theta), bool(mirrored), float(elevation), float(roll),
                 float(dist / car_length), float(fill), (float(offset[0]), float(offset[1])), kind,
-                tuple(float(v) for v in paint))
+                tuple(float(v) for v in paint), box)
     return shot, img
 
 
 # ----------------------------------------------------------------------------------------- writer
 
 MANIFEST_FIELDS = ["file", "class_index", "class_deg", "theta_deg", "elevation_deg", "roll_deg", "mirrored",
-                   "distance_lengths", "fill", "background", "body", "template", "model_index", "split"]
+                   "distance_lengths", "fill", "background", "body", "template", "model_index", "split", "box"]
+
+
+def row_box(row: dict) -> tuple[float, float, float, float] | None:
+    """The car's box (x0, y0, x1, y1) pixels of a manifest row (framed photo-like renders), else None."""
+    text = (row.get("box") or "").strip()
+    return tuple(float(v) for v in text.split()) if text else None  # type: ignore[return-value]
 
 
 def split_templates(names: list[str], seed: int, fraction: float = VALIDATION_FRACTION) -> set[str]:
@@ -510,14 +642,15 @@ def render_dataset(out_dir: str | Path, count: int = DEFAULT_COUNT, seed: int = 
     return out / "manifest.csv"
 
 
-def surfaced_meshes(spec: BodySpec, surface_body: Callable | None = None) -> tuple[list | None, str | None]:
+def surfaced_meshes(spec: BodySpec, surface_body: Callable | None = None, vary: Variation = Variation(),
+                    seed: int = 0) -> tuple[list | None, str | None]:
     """(:func:`body_meshes`, None), or (None, why) when the body cannot be surfaced.
 
     Any failure (a refused region or a bug in a surfacing stage) only skips the body, recorded in
     dataset.json: one bad expansion must not stop a 3000-image render.
     """
     try:
-        return body_meshes(spec, surface_body), None
+        return body_meshes(spec, surface_body, vary.photo is not None and vary.photo.details, seed), None
     except Exception as exc:  # noqa: BLE001  see above
         return None, f"{type(exc).__name__}: {exc}"
 
@@ -588,7 +721,8 @@ def render_images(out: str | Path, spec: BodySpec, b: int, meshes, images: list[
             "roll_deg": round(shot.roll_deg, 3), "mirrored": int(shot.mirrored),
             "distance_lengths": round(shot.distance_lengths, 3), "fill": round(shot.fill, 3),
             "background": shot.background, "body": spec.body_id, "template": spec.template,
-            "model_index": spec.model_index, "split": split})
+            "model_index": spec.model_index, "split": split,
+            "box": "" if shot.box is None else " ".join(f"{v:g}" for v in shot.box)})
     return rows
 
 
@@ -598,7 +732,7 @@ def _render_here(out, bodies, per_body, seed, vary, val_templates, surface_body,
 
     def failure(b: int) -> str | None:
         bar.set_postfix_str(bodies[b].body_id)
-        meshes[b], reason = surfaced_meshes(bodies[b], surface_body)
+        meshes[b], reason = surfaced_meshes(bodies[b], surface_body, vary, seed)
         return reason
 
     rows = []
@@ -621,7 +755,7 @@ def _render_on(client, out, bodies, per_body, seed, vary, val_templates, surface
 
     check_shared_folder(client, out)
     bar.set_postfix_str(f"surfacing {len(bodies)} bodies")
-    surfaced = [client.submit(surfaced_meshes, spec, surface_body, pure=False) for spec in bodies]
+    surfaced = [client.submit(surfaced_meshes, spec, surface_body, vary, seed, pure=False) for spec in bodies]
     failures = client.gather([client.submit(_failure, s, pure=False) for s in surfaced])
     tasks = {}
     for b, n_img in image_plan(bodies, per_body, failures.__getitem__, skipped):

@@ -3,7 +3,8 @@
 Each switch of :class:`PhotoLook` is one row of the ablation table (docs/view_classifier.md):
 
 - ``camera``: a perspective camera held at a person's height (0.4–2.0 m above the ground) 3–15 m
-  from the car, so elevation and perspective follow from where a photographer stands;
+  from the car, so elevation and perspective follow from where a photographer stands (with
+  ``framing``, measured from the car's near side, not its centre: see :func:`person_camera`);
 - ``ground``: the ground plane (asphalt, concrete, tiles, with paint lines) seen through the same
   camera, up to a wall or the horizon, and the car's soft contact shadow on it;
 - ``environment``: paint and glass shaded by an outdoor light (:class:`carbody.render.Environment`):
@@ -11,7 +12,15 @@ Each switch of :class:`PhotoLook` is one row of the ablation table (docs/view_cl
 - ``backdrop``: a photo-like backdrop above the ground (walls, buildings, trees, parked cars,
   sky: blurred blocks of muted colours) instead of stripes and colour noise;
 - ``artefacts``: lens blur, sensor noise, white balance, vignetting and JPEG compression;
-- ``plates``: number plates front and rear (else painted over).
+- ``plates``: number plates front and rear (else painted over);
+- ``framing``: the car framed as a photo's car box is cropped (:func:`photo_frame_crop`): drawn
+  smaller and centred, its box stored, so training crops it as ``carbody view --box`` crops a
+  photo, the photo's own edges included (what lies past them repeats their border);
+- ``details``: what tells a car's front from its rear on a photo, at the body's own scale
+  (:func:`carbody.view.dataset.photo_detail_meshes`): lamps and grilles of varied size sitting
+  on the surface, a lower air intake, door mirrors, black trims;
+- ``sharp``: artefacts at a photo's scale (a large photo reduced to the crop is sharp and its
+  JPEG blocks vanish) and sharp, busy backdrops, instead of blur and JPEG at the render's 128 px.
 
 Everything is numpy on the rendered picture and the scene's camera rays (no extra VTK actors),
 so a shot costs one render.
@@ -41,15 +50,33 @@ class PhotoLook:
     backdrop: bool = True
     artefacts: bool = True
     plates: bool = True
+    framing: bool = True
+    details: bool = True
+    sharp: bool = True
+
+
+#: The earlier photo-like renders (before framing, details and sharp): the ablation's baseline.
+EARLIER_PHOTO_LOOK = PhotoLook(framing=False, details=False, sharp=False)
 
 
 def person_camera(rng: np.random.Generator, lo: np.ndarray, hi: np.ndarray, ground_z: float,
-                  radius: float) -> tuple[float, float]:
+                  radius: float, theta_deg: float | None = None) -> tuple[float, float]:
     """(elevation φ deg, distance from the box centre, model units) of a camera held 0.4–2.0 m
-    above the ground 3–15 m (horizontally, log-uniform) from a car whose box is lo..hi (mm)."""
+    above the ground (15 %: 2–3.5 m) by a person standing 3–15 m (log-uniform) from a car whose
+    box is lo..hi (mm).
+
+    With ``theta_deg`` the 3–15 m are from the near side of the car's box as seen from that
+    azimuth, less 1 m (a person stands 2–14 m clear of the bumper or the door, and no nearer
+    than 1 m), not from its centre: from the centre, a front view at 3 m puts the camera half a
+    metre off the bumper, a distortion no photo shows. None: from the centre (the earlier renders).
+    """
     centre_z = (lo[2] + hi[2]) / 2
     height = rng.uniform(400.0, 2000.0) if rng.random() < 0.85 else rng.uniform(2000.0, 3500.0)
     horizontal = float(np.exp(rng.uniform(np.log(3000.0), np.log(15000.0))))
+    if theta_deg is not None:
+        t = np.radians(theta_deg)
+        half = (hi - lo) / 2
+        horizontal = max(horizontal - 1000.0, 1000.0) + abs(np.cos(t)) * half[1] + abs(np.sin(t)) * half[0]
     dz = ground_z + height - centre_z
     dist = max(float(np.hypot(horizontal, dz)), 1.15 * radius)
     elevation = float(np.degrees(np.arcsin(np.clip(dz / dist, -0.9, 0.9))))
@@ -63,8 +90,10 @@ def _smooth_noise(rng: np.random.Generator, shape: tuple[int, int], cells: int) 
     return cv2.resize(small, (shape[1], shape[0]), interpolation=cv2.INTER_CUBIC)
 
 
-def backdrop(rng: np.random.Generator, size: int) -> np.ndarray:
-    """(size, size, 3) float [0, 1]: a blurred street, showroom or parking backdrop."""
+def backdrop(rng: np.random.Generator, size: int, sharp: bool = False) -> np.ndarray:
+    """(size, size, 3) float [0, 1]: a street, showroom or parking backdrop; blurred blocks of
+    muted colours, or with ``sharp`` the blocks at many scales, some of them windows in rows
+    and posts, and little blur (a photo's background is mostly in focus)."""
     import cv2
 
     h = w = size
@@ -84,16 +113,31 @@ def backdrop(rng: np.random.Generator, size: int) -> np.ndarray:
         wall = muted() if kind != "showroom" else np.full(3, rng.uniform(0.7, 0.95)) * (0.85 + 0.15 * rng.uniform(0, 1, 3))
         top = int(h * rng.uniform(0.0, 0.6)) if kind != "showroom" else 0
         img[top:] = wall
-        for _ in range(rng.integers(2, 10)):     # windows, doors, signs, posts, other cars
+        for _ in range(rng.integers(2, 10) if not sharp else rng.integers(6, 24)):
+            # windows, doors, signs, posts, other cars
             bw, bh = int(rng.integers(w // 20, w // 3)), int(rng.integers(h // 20, h // 2))
+            if sharp and rng.random() < 0.3:
+                bw, bh = max(1, bw // 4), max(2, bh // 3)
             x0, y0 = int(rng.integers(-bw // 2, w)), int(rng.integers(0, h))
             img[max(0, y0):y0 + bh, max(0, x0):x0 + bw] = muted()
+        if sharp:
+            for _ in range(rng.integers(0, 3)):          # a row of windows or a fence
+                y0, n = int(rng.integers(top, h)), int(rng.integers(3, 10))
+                pitch, bw, bh = int(rng.integers(4, 14)), int(rng.integers(2, 8)), int(rng.integers(2, 10))
+                colour, x = muted(), int(rng.integers(-pitch, w // 2))
+                for i in range(n):
+                    img[y0:y0 + bh, max(0, x + i * pitch):max(0, x + i * pitch + min(bw, pitch - 1))] = colour
+            for _ in range(rng.integers(0, 4)):          # posts, poles, pillars
+                x0, pw = int(rng.integers(0, w)), int(rng.integers(1, 4))
+                img[int(rng.integers(0, h // 2)):, x0:x0 + pw] = muted()
         if kind == "showroom" and rng.random() < 0.6:   # a strip of ceiling lights
             y = int(rng.integers(0, h // 4))
             img[y:y + max(1, h // 40)] = 1.0
     img += rng.uniform(0.0, 0.06) * rng.normal(0, 1, img.shape)
-    img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), rng.uniform(0.5, 2.5))
-    return np.clip(img, 0, 1)
+    sigma = rng.uniform(0.5, 2.5) if not sharp else rng.uniform(0.0, 1.0)
+    if sigma > 0.2:
+        img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), sigma)
+    return np.clip(img, 0, 1).astype(np.float32)
 
 
 def ground_and_shadow(scene, rng: np.random.Generator, ground_z: float, lo: np.ndarray, hi: np.ndarray,
@@ -144,13 +188,18 @@ def ground_and_shadow(scene, rng: np.random.Generator, ground_z: float, lo: np.n
     return np.where(hit[..., None], ground, back)
 
 
-def artefacts(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Lens blur, white balance, vignetting, sensor noise and JPEG compression: uint8 in and out."""
+def artefacts(img: np.ndarray, rng: np.random.Generator, sharp: bool = False) -> np.ndarray:
+    """Lens blur, white balance, vignetting, sensor noise and JPEG compression: uint8 in and out.
+
+    With ``sharp`` the blur and the JPEG blocks are those of a large photo after its reduction to
+    the crop: a phone photo's car is 500–2000 px wide and the crop shrinks it 5–20 times, so its
+    blur is a fraction of a crop pixel and its JPEG blocks average away; without, they are applied
+    at the render's own 128 px (blurrier and blockier than any photo's crop)."""
     import cv2
 
     x = img.astype(np.float32) / 255.0
-    if rng.random() < 0.5:
-        x = cv2.GaussianBlur(x, (0, 0), rng.uniform(0.3, 1.0))
+    if rng.random() < (0.5 if not sharp else 0.25):
+        x = cv2.GaussianBlur(x, (0, 0), rng.uniform(0.3, 1.0) if not sharp else rng.uniform(0.2, 0.5))
     x = x * (1 + rng.normal(0, 0.04, 3)).astype(np.float32)             # white balance
     x = np.clip(x, 0, 1) ** rng.uniform(0.85, 1.15)                      # exposure curve
     if rng.random() < 0.4:
@@ -158,10 +207,11 @@ def artefacts(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         yy, xx = np.mgrid[0:h, 0:w]
         r2 = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / (0.5 * (h * h + w * w))
         x = x * (1 - rng.uniform(0.1, 0.35) * r2)[..., None]
-    x = x + rng.normal(0, rng.uniform(0, 0.025), x.shape)
+    x = x + rng.normal(0, rng.uniform(0, 0.025 if not sharp else 0.012), x.shape)
     out = np.clip(x * 255 + 0.5, 0, 255).astype(np.uint8)
-    if rng.random() < 0.8:
-        ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 95))])
+    if rng.random() < (0.8 if not sharp else 0.4):
+        quality = int(rng.integers(35, 95)) if not sharp else int(rng.integers(70, 96))
+        ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
         if ok:
             out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1].copy()
     return out
@@ -181,6 +231,16 @@ def photo_looks(rng: np.random.Generator, photo: PhotoLook):
                "grille": tuple(np.full(3, rng.uniform(0.02, 0.2))),
                "taillight": (rng.uniform(0.45, 0.85), rng.uniform(0.0, 0.08), rng.uniform(0.0, 0.08)),
                "plate": plate if photo.plates else tuple(paint)}
+    if photo.details:
+        black = tuple(np.full(3, rng.uniform(0.02, 0.1)))
+        if rng.random() < 0.4:                         # black mirror caps (else painted)
+            colours["mirror"] = black
+        if rng.random() < 0.35:                        # black window surround and pillars
+            colours["window_surround"] = black
+        if rng.random() < 0.25:                        # black plastic sills (SUVs, pickups)
+            colours["sill"] = tuple(np.full(3, rng.uniform(0.04, 0.15)))
+        if rng.random() < 0.3:                         # smoked or dark-bezel lamps
+            colours["headlight"] = tuple(np.full(3, rng.uniform(0.25, 0.5)))
     env = None
     if photo.environment:
         overcast = rng.random() < 0.35
@@ -195,3 +255,34 @@ def photo_looks(rng: np.random.Generator, photo: PhotoLook):
                           glass_reflectance=float(rng.uniform(0.15, 0.45)),
                           interior=tuple(np.full(3, rng.uniform(0.02, 0.08))))
     return paint, glass, colours, env
+
+
+def photo_frame_crop(image: np.ndarray, box, rng: np.random.Generator, size: int) -> np.ndarray:
+    """(size, size, 3) uint8 network input of a framed render, cropped as a photo of the car would
+    be by ``carbody view --box``: the photo's frame is drawn around the car's ``box`` (x0, y0, x1, y1)
+    pixels of ``image`` — an aspect of 4:3, 3:2, 16:9, 1:1 or 3:4, the car filling 55–100 % of it,
+    anywhere in it — and :func:`carbody.view.predict.crop_to_box` crops that frame, so past the
+    frame's edges the crop repeats their border as it does past a photo's. The box is a person's
+    box: each side off by ~2.5 % of the car's size, and 30 % of the time grown by up to 15 % of its
+    larger side (the box of the marks, grown by 12 %)."""
+    from carbody.view.predict import crop_to_box
+    from carbody.view.train import to_square_input
+
+    h, w = image.shape[:2]
+    b = np.asarray(box, dtype=float)
+    bw, bh = b[2] - b[0], b[3] - b[1]
+    given = b + rng.normal(0, 0.025, 4) * np.array([bw, bh, bw, bh])
+    if rng.random() < 0.3:
+        grow = rng.uniform(0, 0.15) * max(bw, bh)
+        given += np.array([-grow, -grow, grow, grow])
+    aspect = float(rng.choice([4 / 3, 3 / 2, 16 / 9, 1.0, 3 / 4], p=[0.4, 0.25, 0.15, 0.1, 0.1]))
+    fw = max(bw, bh * aspect) / rng.uniform(0.55, 1.0)
+    fh = fw / aspect
+    fx0, fy0 = b[0] - rng.uniform(0, 1) * (fw - bw), b[1] - rng.uniform(0, 1) * (fh - bh)
+    x0, y0 = max(0, int(np.floor(fx0))), max(0, int(np.floor(fy0)))
+    x1, y1 = min(w, int(np.ceil(fx0 + fw))), min(h, int(np.ceil(fy0 + fh)))
+    frame = image[y0:y1, x0:x1]
+    given = given - np.array([x0, y0, x0, y0])
+    if given[2] - given[0] < 2 or given[3] - given[1] < 2:
+        given = b - np.array([x0, y0, x0, y0])
+    return to_square_input(crop_to_box(frame, given), size)

@@ -328,15 +328,21 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
     if temperature is not None and not float(temperature) > 0:
         raise ViewError(f"the temperature must be positive, got {temperature}")
     pics = [read_image(im) for im in images]
-    x = np.stack([to_square_input(pic if b is None else crop_to_box(pic, b)) for pic, b in zip(pics, boxes)])
     npz = numpy_weights_for(weights)
+    if npz is not None:
+        from carbody.view.numpy_net import load_numpy_classifier
+
+        size = int(load_numpy_classifier(npz).meta.get("input_size", 64))
+    else:
+        model, meta = load_classifier(str(weights) if weights else None)
+        size = int(meta.get("input_size", 64))
+    x = np.stack([to_square_input(pic if b is None else crop_to_box(pic, b), size) for pic, b in zip(pics, boxes)])
     if npz is not None:
         return probabilities(x, npz, mirror_average, temperature)
     import torch
 
     from carbody.view.train import to_tensor
 
-    model, meta = load_classifier(str(weights) if weights else None)
     t = float(meta.get("temperature", 1.0)) if temperature is None else float(temperature)
     if not t > 0:
         raise ViewError(f"the temperature must be positive, got {t}")

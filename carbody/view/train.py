@@ -5,9 +5,12 @@ here the split is the data set's own split by car (see :mod:`carbody.view.datase
 learning rate decays from 0.001 to 0 on a cosine by default (``schedule="constant"`` is the
 paper's fixed rate). Training
 augments each batch: a left–right flip (its label becomes the mirror class), a shift of up to
-4 px, brightness/contrast jitter and occasional grayscale, so photos that differ from the
-renders in these ways still classify. The final epoch's weights are saved (fp16) with the
-training history; validation never selects anything.
+4 px (at 64 px), brightness/contrast jitter and occasional grayscale, so photos that differ from
+the renders in these ways still classify. A framed photo-like render (its car's box in the
+manifest) is cropped afresh each time it is drawn, as a photo of it would be
+(:func:`carbody.view.photo.photo_frame_crop`). The final epoch's weights are saved (fp16) with
+the training history; validation never selects anything. A checkpoint after every epoch
+(``OUTPUT.ckpt``) lets ``resume`` go on after an interruption.
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ import numpy as np
 from carbody.errors import ViewError
 from carbody.view.labels import CLASS_ANGLES_DEG, MIRROR_PERMUTATION, N_CLASSES
 
-#: Network input side, pixels (paper: 64).
+#: Network input side, pixels (paper: 64); a weights file says its own (``input_size``).
 INPUT_SIZE = 64
 
 #: Input normalisation: (x / 255 − MEAN) / STD per channel.
@@ -47,6 +50,9 @@ class TrainConfig:
     schedule: str = "cosine"
     zoom: bool = False
     init: str | None = None
+    input_size: int = INPUT_SIZE
+    label_smoothing: float = 0.0
+    resume: bool = False
 
 
 @dataclass
@@ -83,50 +89,74 @@ def to_tensor(images: np.ndarray):
     return (x / 255.0 - MEAN) / STD
 
 
-def load_images(dataset_dir: str | Path, rows: list[dict], progress: bool = True) -> np.ndarray:
-    """(N, 64, 64, 3) uint8 network inputs of the rows' images."""
+def read_rgb(dataset_dir: str | Path, row: dict) -> np.ndarray:
+    """(h, w, 3) uint8 RGB of a data set row's image.
+
+    Raises:
+        ViewError: not a readable image.
+    """
     import cv2
+
+    path = Path(dataset_dir) / row["file"]
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise ViewError(f"{path}: not a readable image")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def network_picture(image: np.ndarray, row: dict, size: int = INPUT_SIZE) -> np.ndarray:
+    """(size, size, 3) uint8 input of a data set image as ``carbody view`` would see it: cropped
+    to the car's box when the row has one (a framed photo-like render, as ``--box`` crops a
+    photo), else the whole picture."""
+    from carbody.view.dataset import row_box
+    from carbody.view.predict import crop_to_box
+
+    box = row_box(row)
+    return to_square_input(image if box is None else crop_to_box(image, box), size)
+
+
+def load_images(dataset_dir: str | Path, rows: list[dict], progress: bool = True,
+                size: int = INPUT_SIZE) -> np.ndarray:
+    """(N, size, size, 3) uint8 network inputs of the rows' images (:func:`network_picture`)."""
     from tqdm import tqdm
 
     from carbody.progress import bar_disabled
 
-    root = Path(dataset_dir)
-    out = np.empty((len(rows), INPUT_SIZE, INPUT_SIZE, 3), dtype=np.uint8)
+    out = np.empty((len(rows), size, size, 3), dtype=np.uint8)
     for i, r in enumerate(tqdm(rows, desc="load", unit="img", disable=bar_disabled(not progress), leave=False)):
-        img = cv2.imread(str(root / r["file"]), cv2.IMREAD_COLOR)
-        if img is None:
-            raise ViewError(f"{root / r['file']}: not a readable image")
-        out[i] = to_square_input(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
+        out[i] = network_picture(read_rgb(dataset_dir, r), r, size)
     return out
 
 
 def augment_batch(x: np.ndarray, y: np.ndarray, rng: np.random.Generator,
-                  zoom: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Flip (label mirrored), shift ≤ 4 px, brightness/contrast jitter, optionally a zoom of
-    0.85–1.2 (60 % of images), 10 % grayscale."""
+                  zoom: bool | np.ndarray = False) -> tuple[np.ndarray, np.ndarray]:
+    """Flip (label mirrored), shift ≤ 1/16 of the side, brightness/contrast jitter, optionally a
+    zoom of 0.85–1.2 (60 % of images; ``zoom`` may be a per-image mask), 10 % grayscale."""
     x = x.copy()
     y = y.copy()
-    n = len(x)
+    n, size = len(x), x.shape[1]
     flip = rng.random(n) < 0.5
     x[flip] = x[flip, :, ::-1]
     y[flip] = MIRROR_PERMUTATION[y[flip]]
-    padded = np.pad(x, ((0, 0), (4, 4), (4, 4), (0, 0)), mode="edge")
-    dx, dy = rng.integers(0, 9, n), rng.integers(0, 9, n)
+    m = max(1, size // 16)
+    padded = np.pad(x, ((0, 0), (m, m), (m, m), (0, 0)), mode="edge")
+    dx, dy = rng.integers(0, 2 * m + 1, n), rng.integers(0, 2 * m + 1, n)
     for i in range(n):
-        x[i] = padded[i, dy[i]:dy[i] + INPUT_SIZE, dx[i]:dx[i] + INPUT_SIZE]
+        x[i] = padded[i, dy[i]:dy[i] + size, dx[i]:dx[i] + size]
     xf = x.astype(np.float32)
     contrast = rng.uniform(0.75, 1.25, (n, 1, 1, 1))
     bright = rng.uniform(-25, 25, (n, 1, 1, 1))
     mean = xf.mean(axis=(1, 2, 3), keepdims=True)
     xf = (xf - mean) * contrast + mean + bright
-    if zoom:          # the car's box is never exact: zoom 0.85-1.2 about a jittered centre
+    zoom_mask = np.broadcast_to(np.asarray(zoom, dtype=bool), (n,))
+    if zoom_mask.any():          # the car's box is never exact: zoom 0.85-1.2 about a jittered centre
         import cv2
 
-        for i in np.flatnonzero(rng.random(n) < 0.6):
+        for i in np.flatnonzero((rng.random(n) < 0.6) & zoom_mask):
             s = rng.uniform(0.85, 1.2)
-            c = INPUT_SIZE / 2 + rng.uniform(-3, 3, 2)
-            m = np.array([[s, 0, (1 - s) * c[0]], [0, s, (1 - s) * c[1]]])
-            xf[i] = cv2.warpAffine(xf[i], m, (INPUT_SIZE, INPUT_SIZE), borderMode=cv2.BORDER_REPLICATE)
+            c = size / 2 + rng.uniform(-3, 3, 2) * size / 64
+            a = np.array([[s, 0, (1 - s) * c[0]], [0, s, (1 - s) * c[1]]])
+            xf[i] = cv2.warpAffine(xf[i], a, (size, size), borderMode=cv2.BORDER_REPLICATE)
     grey = rng.random(n) < 0.1
     xf[grey] = xf[grey].mean(axis=3, keepdims=True)
     return np.clip(xf, 0, 255).astype(np.uint8), y
@@ -184,13 +214,22 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
     if not train_rows or not val_rows:
         raise ViewError(f"{dataset_dir}: needs both training and validation images "
                         f"({len(train_rows)} and {len(val_rows)})")
+    size = int(config.input_size)
+    if not 32 <= size <= 256:
+        raise ViewError(f"input size must be 32..256 px, got {size}")
     torch.set_num_threads(max(1, int(config.threads)))
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    x_train = load_images(dataset_dir, train_rows, progress)
+    from carbody.view.dataset import row_box
+
+    x_train = load_images(dataset_dir, train_rows, progress, size)
     y_train = np.array([r["class_index"] for r in train_rows], dtype=np.int64)
-    x_val = load_images(dataset_dir, val_rows, progress)
+    x_val = load_images(dataset_dir, val_rows, progress, size)
     y_val = np.array([r["class_index"] for r in val_rows], dtype=np.int64)
+    # framed renders are cropped afresh at every draw, from the stored picture
+    framed = np.array([row_box(r) is not None for r in train_rows], dtype=bool)
+    pictures = {i: read_rgb(dataset_dir, train_rows[i]) for i in np.flatnonzero(framed)} if config.augment else {}
+    boxes = {i: row_box(train_rows[i]) for i in pictures}
 
     model = build_mobilenet_v2(N_CLASSES, width_mult=config.width_mult)
     if config.init:         # go on from earlier weights (a longer schedule in two runs)
@@ -202,8 +241,21 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
         opt, (lambda i: 0.5 * (1 + np.cos(np.pi * min(i, steps) / steps))) if config.schedule == "cosine"
         else (lambda i: 1.0))
     hist = History()
-    t0 = time.perf_counter()
-    bar = tqdm(range(config.epochs), desc="train-view", unit="epoch", disable=bar_disabled(not progress))
+    checkpoint = output.with_suffix(".ckpt")
+    first_epoch = 0
+    if config.resume and checkpoint.exists():
+        state = torch.load(checkpoint, map_location="cpu", weights_only=False)
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["optimizer"])
+        sched.load_state_dict(state["scheduler"])
+        rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+        hist = History(**state["history"])
+        first_epoch = len(hist.train_loss)
+    from carbody.view.photo import photo_frame_crop
+
+    t0 = time.perf_counter() - hist.seconds
+    bar = tqdm(range(first_epoch, config.epochs), desc="train-view", unit="epoch", disable=bar_disabled(not progress))
     for _ in bar:
         model.train()
         order = rng.permutation(len(x_train))
@@ -214,10 +266,14 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
                 continue
             xb, yb = x_train[idx], y_train[idx]
             if config.augment:
-                xb, yb = augment_batch(xb, yb, rng, zoom=config.zoom)
+                xb = xb.copy()
+                for j, k in enumerate(idx):
+                    if k in pictures:
+                        xb[j] = photo_frame_crop(pictures[k], boxes[k], rng, size)
+                xb, yb = augment_batch(xb, yb, rng, zoom=config.zoom & ~framed[idx])
             logits = model(to_tensor(xb))
             target = torch.from_numpy(yb)
-            loss = torch.nn.functional.cross_entropy(logits, target)
+            loss = torch.nn.functional.cross_entropy(logits, target, label_smoothing=config.label_smoothing)
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -231,10 +287,27 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
         hist.val_acc.append(va)
         bar.set_postfix(loss=f"{hist.train_loss[-1]:.3f}", acc=f"{hist.train_acc[-1]:.3f}",
                         val_loss=f"{vl:.3f}", val_acc=f"{va:.3f}")
+        hist.seconds = time.perf_counter() - t0
+        _save_checkpoint(checkpoint, model, opt, sched, rng, hist)
     hist.seconds = time.perf_counter() - t0
     save_weights(model, output, config, hist, dataset_dir, rows)
+    checkpoint.unlink(missing_ok=True)
     plot_history(hist, plot or output.with_suffix(".png"))
     return hist
+
+
+def _save_checkpoint(path: Path, model, opt, sched, rng: np.random.Generator, hist: History) -> None:
+    """Everything a resumed run needs after an epoch (written atomically)."""
+    import os
+
+    import torch
+
+    state = {"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+             "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
+             "history": {k: getattr(hist, k) for k in hist.__dataclass_fields__}}
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    torch.save(state, tmp)
+    os.replace(tmp, path)
 
 
 def save_weights(model, output: Path, config: TrainConfig, hist: History, dataset_dir, rows) -> Path:
@@ -252,7 +325,7 @@ def save_weights(model, output: Path, config: TrainConfig, hist: History, datase
         "num_classes": N_CLASSES,
         "classes_deg": CLASS_ANGLES_DEG.tolist(),
         "width_mult": config.width_mult,
-        "input_size": INPUT_SIZE,
+        "input_size": int(config.input_size),
         "mean": MEAN,
         "std": STD,
         "config": vars(config) if not hasattr(config, "__dataclass_fields__") else
