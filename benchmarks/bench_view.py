@@ -10,7 +10,7 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
     python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
     python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
-    python benchmarks/bench_view.py --photo-ablation [--epochs 25] [--count 2400] [--workdir DIR] [--only ROWS]
+    python benchmarks/bench_view.py --photo-ablation [--epochs 40] [--count 4800] [--workdir DIR] [--only "B;C"]
 
 ``--real`` classifies the 27 real photos of ``../shared/realphotos`` (measurement only: nothing
 is copied or trained on them) against the views estimated by eye in their keypoint files (±10°):
@@ -364,85 +364,107 @@ def main_real(args) -> int:
     return 0
 
 
-PHOTO_VARIANTS = ("classic renders (today's looks)", "photo-like, all changes", "- person-height camera",
-                  "- ground and contact shadow", "- environment-lit paint and glass", "- photo backdrops",
-                  "- blur/noise/JPEG artefacts", "- plates", "- blended bodies", "- zoom augmentation")
+#: Rows of the photo-like ablation, cumulative: (key, label, PhotoLook parts switched off, input px).
+#: Every row renders the same bodies, split, classes and count (seed 0), 80 % photo-like and
+#: 20 % classic, and trains the same schedule; the last row trains on the previous row's renders.
+PHOTO_ROWS = (
+    ("A", "earlier photo-like renders (first pass of issue 26)", ("framing", "details", "sharp"), 64),
+    ("B", "+ framing: the photo's crop of the car's box, photographer 3-15 m from the car", ("details", "sharp"), 64),
+    ("C", "+ details: lamps, grilles, intake, mirrors, trims", ("sharp",), 64),
+    ("D", "+ sharp: artefacts at a photo's scale, busy backdrops (all changes)", (), 64),
+    ("E", "all changes, 96 px input", (), 96),
+)
 
 
-def photo_variant(name: str, blends: int):
-    """(Variation, blends, zoom) of one row of the photo-like ablation."""
-    from carbody.view.dataset import Variation
+def photo_row_dataset(work: Path, key: str, off: tuple, args) -> Path:
+    """The row's training renders (rendered here unless ``work/<key>`` already holds them)."""
+    from carbody.view.dataset import Variation, render_dataset
     from carbody.view.photo import PhotoLook
 
-    off = {"- person-height camera": "camera", "- ground and contact shadow": "ground",
-           "- environment-lit paint and glass": "environment", "- photo backdrops": "backdrop",
-           "- blur/noise/JPEG artefacts": "artefacts", "- plates": "plates"}
-    if name.startswith("classic"):
-        return Variation(), blends, False
-    photo = PhotoLook(**({off[name]: False} if name in off else {}))
-    return (Variation(photo=photo, photo_fraction=0.8), 0 if name == "- blended bodies" else blends,
-            name != "- zoom augmentation")
+    d = work / key
+    if not (d / "manifest.csv").exists():
+        photo = PhotoLook(**{k: False for k in off})
+        render_dataset(d, count=args.count, seed=0, bodies_per_template=3, blends=args.blends, progress=True,
+                       vary=Variation(photo=photo, photo_fraction=0.8))
+    return d
+
+
+def measure_weights(weights: str, work: Path, photos: list[dict], val_templates: list[str], args) -> dict:
+    """Real photos (car's box, marks' box, full photo) and the held-out cars' classic and
+    photo-like renders (seed 1234, 480 each) of one weights file."""
+    from carbody.view.dataset import read_manifest
+    from carbody.view.labels import continuous_estimate
+    from carbody.view.predict import keypoint_box, predict_probabilities
+
+    row: dict = {}
+    for kind in ("classic", "photo"):
+        test_dir = work / f"test_{kind}"
+        if not (test_dir / "manifest.csv").exists():
+            evaluation_set(test_dir, args.test_count, 1234, val_templates, photo_like=kind == "photo")
+        test_rows = read_manifest(test_dir)
+        r = scores(test_rows, classify(test_dir, weights, test_rows))
+        row |= {f"{kind}_{k}": r[k] for k in ("top1", "within15", "front_rear_confusions")}
+    truth = np.array([p["estimate_deg"] for p in photos])
+    for label, boxes in (("box", [p["parts_box"] for p in photos]), ("marks", [keypoint_box(p["marks"]) for p in photos]),
+                         ("full", [None] * len(photos))):
+        if photos:
+            pr = predict_probabilities([p["image"] for p in photos], weights, boxes=boxes)
+            sc = real_scores(np.array([continuous_estimate(q) for q in pr]), truth)
+            row |= {f"{label}_{k}": sc[k] for k in ("within15", "within30", "front_rear", "left_right", "median_err")}
+    return row
 
 
 def main_photo_ablation(args) -> None:
-    """One training set per row (same seed, bodies, split and size), the same epochs, each model
-    measured on the real photos' car boxes and on photo-like renders of the held-out cars."""
+    """One training set per row (same seed, bodies, split and size), the same schedule, each model
+    measured on the real photos and on classic and photo-like renders of the held-out cars. Rows
+    run in separate processes (``--only B;C``) share ``--workdir``; each row keeps its renders,
+    weights (resumable checkpoint) and result in ``WORKDIR/<key>``."""
     import json
 
-    from carbody.view.dataset import read_manifest, render_dataset
-    from carbody.view.labels import continuous_estimate
-    from carbody.view.predict import keypoint_box, predict_probabilities
     from carbody.view.train import TrainConfig, train_view_classifier
 
     work = Path(args.workdir or tempfile.mkdtemp(prefix="carbody-view-photo-ablation-"))
     root = Path(args.photos) if args.photos else REAL_PHOTOS
     photos = real_photo_set(root) if (root / "keypoints").is_dir() else []
-    truth = np.array([p["estimate_deg"] for p in photos])
-    only = [x.strip() for x in args.only.split(";")] if args.only else list(PHOTO_VARIANTS)
-    results_file = work / "results.json"
-    results = json.loads(results_file.read_text()) if results_file.exists() else {}
-    test_dir = work / "test_photo"
-    for name in PHOTO_VARIANTS:
-        if name not in only:
+    only = [x.strip() for x in args.only.split(";")] if args.only else [k for k, *_ in PHOTO_ROWS]
+    for key, label, off, size in PHOTO_ROWS:
+        if key not in only:
             continue
-        vary, blends, zoom = photo_variant(name, args.blends)
-        # the zoom row trains on the renders of the all-changes row
-        same_renders = PHOTO_VARIANTS[1] if name == "- zoom augmentation" else name
-        d = work / ("v_" + "".join(c for c in same_renders if c.isalnum()))
-        if not (d / "manifest.csv").exists():
-            render_dataset(d, count=args.count, seed=args.seed, bodies_per_template=2, vary=vary, blends=blends,
-                           progress=True)
-        if not (test_dir / "manifest.csv").exists():
-            val = json.loads((d / "dataset.json").read_text())["validation_templates"]
-            evaluation_set(test_dir, args.test_count, args.seed + 1, val, photo_like=True)
-        w = d / f"weights_e{args.epochs}{'' if zoom else '_nozoom'}.pt"
-        secs = float("nan")
+        d = photo_row_dataset(work, "D" if key == "E" else key, off, args)
+        w = work / key / f"weights_e{args.epochs}_{size}px.pt"
+        result = work / key / f"result_e{args.epochs}_{size}px.json"
         if not w.exists():
-            secs = train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1, zoom=zoom)).seconds
-        test_rows = read_manifest(test_dir)
-        r = scores(test_rows, classify(test_dir, str(w), test_rows))
-        row = {"renders_top1": r["top1"], "renders_within15": r["within15"], "train_s": secs}
-        for label, boxes in (("box", [p["parts_box"] for p in photos]), ("marks", [keypoint_box(p["marks"]) for p in photos]),
-                             ("full", [None] * len(photos))):
-            if photos:
-                pr = predict_probabilities([p["image"] for p in photos], str(w), boxes=boxes)
-                sc = real_scores(np.array([continuous_estimate(q) for q in pr]), truth)
-                row |= {f"{label}_{k}": sc[k] for k in ("within15", "within30", "front_rear", "left_right")}
-        results[name] = row
-        results_file.write_text(json.dumps(results, indent=1))
-        print(name, row, flush=True)
-    print(f"photo-like ablation: {args.count} renders per row (2 bodies per template, {args.blends} blends; "
-          f"about 80 % train), {args.epochs} epochs, 1 thread; real photos: car's box (part polygons); "
-          f"renders: {args.test_count} photo-like renders of the held-out cars")
-    print("| training renders | real ±15° | real ±30° | front/rear | left/right | marks box ±15° | full photo ±15° "
-          "| renders top-1 | renders ±15° |\n|---|---|---|---|---|---|---|---|---|")
-    for name in PHOTO_VARIANTS:
-        if name in results:
-            r = results[name]
-            print(f"| {name} | {r.get('box_within15', float('nan')):.2f} | {r.get('box_within30', float('nan')):.2f} | "
-                  f"{r.get('box_front_rear', float('nan')):.2f} | {r.get('box_left_right', float('nan')):.2f} | "
-                  f"{r.get('marks_within15', float('nan')):.2f} | {r.get('full_within15', float('nan')):.2f} | "
-                  f"{r['renders_top1']:.3f} | {r['renders_within15']:.3f} |")
+            train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1, zoom=True, input_size=size,
+                                                    resume=True), progress=True)
+        from carbody.view.predict import load_classifier
+
+        _, meta = load_classifier(str(w))
+        row = measure_weights(str(w), work, photos, meta["dataset"]["validation_templates"], args)
+        row |= {"train_s": meta["history"]["seconds"], "val_acc": meta["history"]["val_acc"][-1]}
+        result.write_text(json.dumps(row, indent=1))
+        print(key, label, row, flush=True)
+    print_photo_ablation(work, args.epochs)
+
+
+def print_photo_ablation(work: Path, epochs: int) -> None:
+    import json
+
+    print(f"photo-like ablation ({work}): per row 4800 renders (3 bodies a template, 40 blends, 80 % photo-like), "
+          f"{epochs} epochs, 1 thread; real photos: 27, views by eye ±10°; renders: 480 classic and 480 photo-like "
+          "of the 7 held-out cars (seed 1234)")
+    print("| training renders | real car's box ±15° / ±30° / front-rear / left-right | marks' box ±15° / ±30° "
+          "| full photo ±15° / ±30° | classic renders top-1 / ±15° / front-rear | photo-like renders top-1 / ±15° "
+          "| train min |\n|---|---|---|---|---|---|---|")
+    for key, label, _, size in PHOTO_ROWS:
+        f = work / key / f"result_e{epochs}_{size}px.json"
+        if not f.exists():
+            continue
+        r = json.loads(f.read_text())
+        print(f"| {label} | {r['box_within15']:.2f} / {r['box_within30']:.2f} / {r['box_front_rear']:.2f} / "
+              f"{r['box_left_right']:.2f} | {r['marks_within15']:.2f} / {r['marks_within30']:.2f} | "
+              f"{r['full_within15']:.2f} / {r['full_within30']:.2f} | {r['classic_top1']:.3f} / "
+              f"{r['classic_within15']:.3f} / {r['classic_front_rear_confusions']:.3f} | {r['photo_top1']:.3f} / "
+              f"{r['photo_within15']:.3f} | {r['train_s'] / 60:.0f} |")
 
 
 def main() -> None:
@@ -463,8 +485,8 @@ def main() -> None:
                     help="comma-separated templates to render for the evaluation (default: the weights' held-out cars)")
     ap.add_argument("--keep", default=None, help="render the evaluation set into this folder (reuse with --dataset)")
     ap.add_argument("--photo-ablation", action="store_true",
-                    help="ablation of the photo-like renders, measured on the real photos (see PHOTO_VARIANTS)")
-    ap.add_argument("--blends", type=int, default=20, help="photo ablation: blended bodies per training set")
+                    help="ablation of the photo-like renders, measured on the real photos (see PHOTO_ROWS)")
+    ap.add_argument("--blends", type=int, default=40, help="photo ablation: blended bodies per training set")
     ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
@@ -474,9 +496,11 @@ def main() -> None:
         return main_real(args)
     if args.photo_ablation:
         if args.count == 480:
-            args.count = 2400
+            args.count = 4800
         if args.test_count == 2400:
             args.test_count = 480
+        if args.epochs == 25:
+            args.epochs = 40
         return main_photo_ablation(args)
     if args.ablation:
         if args.count == 480:

@@ -69,3 +69,70 @@ def test_a_photo_like_shot_has_ground_under_the_car_and_follows_its_seed(box_sce
     off = Variation(photo=PhotoLook(ground=False, artefacts=False))
     _, c = shoot_photo(box_scene, spec, 6, np.random.default_rng(5), off)
     assert np.abs(a[-8:].astype(int) - c[-8:]).mean() > 5      # the bottom of the frame is ground
+
+
+def test_a_framed_shot_stores_the_cars_box_with_room_round_it(box_scene):
+    from carbody.view.dataset import BodySpec, Variation, shoot_photo
+    from carbody.view.photo import EARLIER_PHOTO_LOOK, PhotoLook
+
+    spec = BodySpec("box", "box", 0, (1, 1, 1, 1), np.zeros((280, 3)), tyre_radius_mm=300.0)
+    for k in (0, 3, 6, 9, 15):
+        shot, img = shoot_photo(box_scene, spec, k, np.random.default_rng(k), Variation(photo=PhotoLook()))
+        x0, y0, x1, y1 = shot.box
+        assert 0 <= x0 < x1 <= 128 and 0 <= y0 < y1 <= 128
+        assert 0.5 * 128 < max(x1 - x0, y1 - y0) < 0.85 * 128          # the crop's square fits the render
+    shot, _ = shoot_photo(box_scene, spec, 6, np.random.default_rng(1), Variation(photo=EARLIER_PHOTO_LOOK))
+    assert shot.box is None
+
+
+def test_the_photographer_stands_clear_of_the_bumper():
+    from carbody.view.photo import person_camera
+
+    rng = np.random.default_rng(0)
+    lo, hi, ground = np.array([-900.0, -900, -330]), np.array([900.0, 3600, 1150]), -330.0
+    for theta in (0.0, 30.0, 90.0, 180.0):
+        for _ in range(100):
+            el, dist = person_camera(rng, lo, hi, ground, radius=2500.0, theta_deg=theta)
+            horizontal = dist * np.cos(np.radians(el))
+            t = np.radians(theta)
+            near = abs(np.cos(t)) * (hi - lo)[1] / 2 + abs(np.sin(t)) * (hi - lo)[0] / 2
+            assert 999 < horizontal - near < 14001
+
+
+def test_a_photo_frame_crop_frames_the_box_and_repeats_the_frames_edges():
+    from carbody.view.photo import photo_frame_crop
+
+    img = np.zeros((128, 128, 3), np.uint8)
+    img[:, :, 1] = np.arange(128, dtype=np.uint8)[:, None]      # a vertical ramp: rows tell where we are
+    img[50:80, 24:104, 0] = 255                                  # the car: 80 x 30 px
+    widths, flat_rows = [], 0
+    for seed in range(40):
+        out = photo_frame_crop(img, (24, 50, 104, 80), np.random.default_rng(seed), 64)
+        assert out.shape == (64, 64, 3) and out.dtype == np.uint8
+        cols = np.nonzero((out[..., 0] > 128).any(axis=0))[0]
+        widths.append((np.ptp(cols) + 1) / 64)
+        # past a frame's top or bottom edge the crop repeats the edge row
+        flat_rows += int((np.abs(np.diff(out[:, :, 1].astype(int), axis=0)) == 0).all(axis=1)[:4].all())
+    assert 0.65 < np.median(widths) < 0.9                         # the box spans ~80 % of the square
+    assert flat_rows > 5                                          # some frames cut above the car
+
+
+def test_details_lie_on_a_curved_tail_not_behind_it():
+    """A tail bulging backward (a half cylinder): the lamp sheets follow it within their lift."""
+    from carbody.render.mesh import FaceMesh
+    from carbody.view.dataset import _surface_patch
+
+    r = 900.0
+    a, z = np.meshgrid(np.linspace(0, np.pi / 2, 30), np.linspace(0, 600, 12))
+    x, y = r * np.sin(a), 4000 + 300 * np.cos(a)                # x 0..900, y bulges to 4300 at x = 0
+    v = np.c_[x.ravel(), y.ravel(), z.ravel()]
+    i, k = np.meshgrid(np.arange(11), np.arange(29), indexing="ij")
+    f = (i * 30 + k).ravel()
+    tail = FaceMesh("tail", v, np.r_[np.c_[f, f + 1, f + 30], np.c_[f + 1, f + 31, f + 30]])
+    patch = _surface_patch("taillight", [tail], 0.5, 0.98, 0.1, 0.4, out_y=1.0, lift=4.0)
+    px = patch.vertices[np.unique(patch.triangles)]
+    t = np.linspace(0, np.pi / 2, 4000)
+    curve = np.c_[r * np.sin(t), 4000 + 300 * np.cos(t)]
+    gap = np.linalg.norm(px[:, None, :2] - curve[None], axis=2).min(axis=1)
+    assert np.all((gap > 2.0) & (gap < 6.0))                    # 4 mm off the surface (chords aside)
+    assert px[:, 0].max() > 0.9 * r and px[:, 2].min() > 350 and px[:, 2].max() < 545
