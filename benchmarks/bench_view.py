@@ -10,6 +10,7 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
     python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
     python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
+    python benchmarks/bench_view.py --speed [--weights W.pt|W.npz] [--repeats 200]
     python benchmarks/bench_view.py --photo-ablation [--epochs 40] [--count 4800] [--workdir DIR] [--only "B;C"]
 
 ``--real`` classifies the 27 real photos of ``../shared/realphotos`` (measurement only: nothing
@@ -129,6 +130,66 @@ def inference_ms(image_path: Path, weights: str | None, repeats: int = 200) -> d
         out[f"{key}_median_ms"] = statistics.median(t)
         out[f"{key}_p90_ms"] = float(np.percentile(t, 90))
     return out
+
+
+def main_speed(args) -> int:
+    """Per-picture inference as ``carbody view --box`` runs it (decode + crop + resize + the numpy
+    network with mirror averaging, no torch), wall and CPU time, 1 BLAS thread; a ``.pt`` is
+    exported to a temporary ``.npz`` first. The load average is printed: on the shared machine
+    the wall time grows with it, the CPU time much less."""
+    from carbody.view.predict import predict_view
+
+    weights = args.weights
+    if weights and Path(weights).suffix == ".pt":
+        from carbody.view.numpy_net import export_weights
+
+        npz = Path(tempfile.mkdtemp(prefix="carbody-view-speed-")) / "w.npz"
+        export_weights(weights, npz)
+        weights = str(npz)
+    root = Path(args.photos) if args.photos else REAL_PHOTOS
+    photos = real_photo_set(root) if (root / "keypoints").is_dir() else []
+    if photos:
+        image, box = photos[0]["image"], photos[0]["parts_box"]
+    else:                        # no shared photos: a synthetic 800 x 600 picture
+        image, box = np.random.default_rng(0).integers(0, 255, (600, 800, 3), dtype=np.uint8), (100, 150, 700, 450)
+    from carbody.view.numpy_net import load_numpy_classifier, numpy_weights_for
+
+    size = load_numpy_classifier(numpy_weights_for(weights)).meta["input_size"]
+    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "
+          f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} (1/5/15 min); numpy network, {size} px input, "
+          f"1 BLAS thread; picture {Path(image).name if photos else 'synthetic'} with its box")
+    print("| call | wall ms median | wall ms 90th pct | CPU ms median |\n|---|---|---|---|")
+    for mirror in (False, True):
+        for _ in range(10):
+            predict_view(image, weights, mirror_average=mirror, box=box)
+        wall, cpu = [], []
+        for _ in range(args.repeats):
+            w0, c0 = time.perf_counter(), time.process_time()
+            predict_view(image, weights, mirror_average=mirror, box=box)
+            wall.append((time.perf_counter() - w0) * 1000)
+            cpu.append((time.process_time() - c0) * 1000)
+        label = "whole call (decode + crop + network), " + ("with mirror averaging (default)" if mirror else "one pass")
+        print(f"| {label} | {statistics.median(wall):.2f} | {np.percentile(wall, 90):.2f} | "
+              f"{statistics.median(cpu):.2f} |")
+    from carbody.view.numpy_net import probabilities
+    from carbody.view.predict import crop_to_box, read_image
+    from carbody.view.train import to_square_input
+
+    x = to_square_input(crop_to_box(read_image(image), box), size)[None]
+    for mirror in (False, True):
+        for _ in range(10):
+            probabilities(x, numpy_weights_for(weights), mirror)
+        wall, cpu = [], []
+        for _ in range(args.repeats):
+            w0, c0 = time.perf_counter(), time.process_time()
+            probabilities(x, numpy_weights_for(weights), mirror)
+            wall.append((time.perf_counter() - w0) * 1000)
+            cpu.append((time.process_time() - c0) * 1000)
+        label = "network alone, " + ("with mirror averaging" if mirror else "one pass")
+        print(f"| {label} | {statistics.median(wall):.2f} | {np.percentile(wall, 90):.2f} | "
+              f"{statistics.median(cpu):.2f} |")
+    print(f"load average after: {' / '.join(f'{x:.1f}' for x in os.getloadavg())}")
+    return 0
 
 
 def main_eval(args) -> None:
@@ -490,10 +551,15 @@ def main() -> None:
     ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
+    ap.add_argument("--speed", action="store_true",
+                    help="inference time per picture as carbody view --box runs it (numpy network)")
+    ap.add_argument("--repeats", type=int, default=200, help="--speed: timed calls per setting")
     args = ap.parse_args()
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
     if args.real:
         return main_real(args)
+    if args.speed:
+        return main_speed(args)
     if args.photo_ablation:
         if args.count == 480:
             args.count = 4800
