@@ -425,28 +425,31 @@ def main_real(args) -> int:
     return 0
 
 
-#: Rows of the photo-like ablation, cumulative: (key, label, PhotoLook parts switched off, input px).
-#: Every row renders the same bodies, split, classes and count (seed 0), 80 % photo-like and
-#: 20 % classic, and trains the same schedule; the last row trains on the previous row's renders.
+#: Rows of the photo-like ablation, cumulative: (key, label, PhotoLook settings, input px, renders of
+#: row). Every row renders the same bodies, split, classes and count (seed 0), 80 % photo-like and
+#: 20 % classic, and trains the same schedule; E trains on D's renders.
+OFF = dict(framing=False, details=False, sharp=False, tone=False)
 PHOTO_ROWS = (
-    ("A", "earlier photo-like renders (first pass of issue 26)", ("framing", "details", "sharp"), 64),
-    ("B", "+ framing: the photo's crop of the car's box, photographer 3-15 m from the car", ("details", "sharp"), 64),
-    ("C", "+ details: lamps, grilles, intake, mirrors, trims", ("sharp",), 64),
-    ("D", "+ sharp: artefacts at a photo's scale, busy backdrops (all changes)", (), 64),
-    ("E", "all changes, 96 px input", (), 96),
+    ("A", "earlier photo-like renders (first pass of issue 26)", OFF, 64, "A"),
+    ("B", "+ framing: the photo's crop of the car's box, photographer 3-15 m from the car",
+     OFF | dict(framing=True), 64, "B"),
+    ("C", "+ details: lamps, grilles, intake, mirrors, trims", OFF | dict(framing=True, details=True), 64, "C"),
+    ("D", "+ sharp: artefacts at a photo's scale, busy backdrops", OFF | dict(framing=True, details=True, sharp=True),
+     64, "D"),
+    ("E", "D at 96 px input", OFF | dict(framing=True, details=True, sharp=True), 96, "D"),
+    ("F", "+ tone: colours shaded as light, encoded as a camera does", dict(), 64, "F"),
 )
 
 
-def photo_row_dataset(work: Path, key: str, off: tuple, args) -> Path:
+def photo_row_dataset(work: Path, key: str, look: dict, args) -> Path:
     """The row's training renders (rendered here unless ``work/<key>`` already holds them)."""
     from carbody.view.dataset import Variation, render_dataset
     from carbody.view.photo import PhotoLook
 
     d = work / key
     if not (d / "manifest.csv").exists():
-        photo = PhotoLook(**{k: False for k in off})
         render_dataset(d, count=args.count, seed=0, bodies_per_template=3, blends=args.blends, progress=True,
-                       vary=Variation(photo=photo, photo_fraction=0.8))
+                       vary=Variation(photo=PhotoLook(**{"tone": True} | look), photo_fraction=0.8))
     return d
 
 
@@ -488,15 +491,16 @@ def main_photo_ablation(args) -> None:
     root = Path(args.photos) if args.photos else REAL_PHOTOS
     photos = real_photo_set(root) if (root / "keypoints").is_dir() else []
     only = [x.strip() for x in args.only.split(";")] if args.only else [k for k, *_ in PHOTO_ROWS]
-    for key, label, off, size in PHOTO_ROWS:
+    for key, label, look, size, renders in PHOTO_ROWS:
         if key not in only:
             continue
-        d = photo_row_dataset(work, "D" if key == "E" else key, off, args)
-        w = work / key / f"weights_e{args.epochs}_{size}px.pt"
-        result = work / key / f"result_e{args.epochs}_{size}px.json"
+        d = photo_row_dataset(work, renders, look, args)
+        tag = photo_row_tag(args.epochs, size, args.width)
+        w = work / key / f"weights_{tag}.pt"
+        result = work / key / f"result_{tag}.json"
         if not w.exists():
             train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1, zoom=True, input_size=size,
-                                                    resume=True), progress=True)
+                                                    width_mult=args.width, resume=True), progress=True)
         from carbody.view.predict import load_classifier
 
         _, meta = load_classifier(str(w))
@@ -504,20 +508,24 @@ def main_photo_ablation(args) -> None:
         row |= {"train_s": meta["history"]["seconds"], "val_acc": meta["history"]["val_acc"][-1]}
         result.write_text(json.dumps(row, indent=1))
         print(key, label, row, flush=True)
-    print_photo_ablation(work, args.epochs)
+    print_photo_ablation(work, args.epochs, args.width)
 
 
-def print_photo_ablation(work: Path, epochs: int) -> None:
+def photo_row_tag(epochs: int, size: int, width: float) -> str:
+    return f"e{epochs}_{size}px" + ("" if width == 1.0 else f"_w{width:g}")
+
+
+def print_photo_ablation(work: Path, epochs: int, width: float = 1.0) -> None:
     import json
 
     print(f"photo-like ablation ({work}): per row 4800 renders (3 bodies a template, 40 blends, 80 % photo-like), "
-          f"{epochs} epochs, 1 thread; real photos: 27, views by eye ±10°; renders: 480 classic and 480 photo-like "
-          "of the 7 held-out cars (seed 1234)")
+          f"MobileNetV2 width {width:g}, {epochs} epochs, 1 thread; real photos: 27, views by eye ±10°; renders: "
+          "480 classic and 480 photo-like of the 7 held-out cars (seed 1234)")
     print("| training renders | real car's box ±15° / ±30° / front-rear / left-right | marks' box ±15° / ±30° "
           "| full photo ±15° / ±30° | classic renders top-1 / ±15° / front-rear | photo-like renders top-1 / ±15° "
           "| train min |\n|---|---|---|---|---|---|---|")
-    for key, label, _, size in PHOTO_ROWS:
-        f = work / key / f"result_e{epochs}_{size}px.json"
+    for key, label, _, size, _ in PHOTO_ROWS:
+        f = work / key / f"result_{photo_row_tag(epochs, size, width)}.json"
         if not f.exists():
             continue
         r = json.loads(f.read_text())
@@ -548,6 +556,7 @@ def main() -> None:
     ap.add_argument("--photo-ablation", action="store_true",
                     help="ablation of the photo-like renders, measured on the real photos (see PHOTO_ROWS)")
     ap.add_argument("--blends", type=int, default=40, help="photo ablation: blended bodies per training set")
+    ap.add_argument("--width", type=float, default=1.0, help="photo ablation: MobileNetV2 width multiplier")
     ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")

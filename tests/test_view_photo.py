@@ -136,3 +136,17 @@ def test_details_lie_on_a_curved_tail_not_behind_it():
     gap = np.linalg.norm(px[:, None, :2] - curve[None], axis=2).min(axis=1)
     assert np.all((gap > 2.0) & (gap < 6.0))                    # 4 mm off the surface (chords aside)
     assert px[:, 0].max() > 0.9 * r and px[:, 2].min() > 350 and px[:, 2].max() < 545
+
+
+def test_tone_encodes_light_as_a_camera_does():
+    from carbody.render import Environment, Look
+    from carbody.view.photo import display_encode, linear_look
+
+    look = linear_look(Look(paint=(0.5, 0.5, 0.5), colours={"tyre": (1.0, 0.0, 0.0)}, environment=Environment()))
+    assert look.paint[0] == pytest.approx(0.5 ** 2.2) and look.colours["tyre"] == (1.0, 0.0, 0.0)
+    assert look.environment.sky[0] == pytest.approx(0.75 ** 2.2)
+    light = np.array([[[0.28 * 255] * 3, [0.0] * 3, [128.0] * 3]], dtype=np.uint8)   # a white car's shaded flank
+    alpha = np.array([[1.0, 1.0, 0.5]])
+    shown = display_encode(light, alpha, exposure=1.0)
+    assert 135 < shown[0, 0, 0] < 150 and shown[0, 1, 0] == 0          # 0.28 of white shows as ~0.56
+    assert shown[0, 2, 0] == pytest.approx(255 * 0.5, abs=2)            # edge pixels keep their coverage

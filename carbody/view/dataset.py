@@ -515,8 +515,12 @@ def shoot_photo(scene, spec: BodySpec, class_index: int, rng: np.random.Generato
     look = Look(paint=tuple(paint), glass=tuple(glass), colours=colours, background=(0.0, 0.0, 0.0),
                 environment=env, light_azimuth_deg=rng.uniform(-80, 80), light_elevation_deg=rng.uniform(10, 70),
                 light_intensity=rng.uniform(0.6, 1.1), ambient=rng.uniform(0.15, 0.4), specular=rng.uniform(0.2, 0.6))
+    if pl.tone:
+        look = ph.linear_look(look)
     premult, alpha = scene.render(render_theta, elevation, roll, look=look, distance=dist, fill=fill,
                                   offset=offset, return_alpha=True)
+    if pl.tone:
+        premult = ph.display_encode(premult, alpha, rng.uniform(0.85, 1.3))
     if pl.backdrop:
         back, kind = ph.backdrop(rng, IMAGE_SIZE, pl.sharp), "photo"
     else:

@@ -20,7 +20,10 @@ Each switch of :class:`PhotoLook` is one row of the ablation table (docs/view_cl
   (:func:`carbody.view.dataset.photo_detail_meshes`): lamps and grilles of varied size sitting
   on the surface, a lower air intake, door mirrors, black trims;
 - ``sharp``: artefacts at a photo's scale (a large photo reduced to the crop is sharp and its
-  JPEG blocks vanish) and sharp, busy backdrops, instead of blur and JPEG at the render's 128 px.
+  JPEG blocks vanish) and sharp, busy backdrops, instead of blur and JPEG at the render's 128 px;
+- ``tone``: the car's colours shaded as light (:func:`linear_look`) and encoded for display with
+  an exposure (:func:`display_encode`), as a camera does; without it the renderer's linear light
+  is shown as display values, so a white car's shaded flank comes out dark grey.
 
 Everything is numpy on the rendered picture and the scene's camera rays (no extra VTK actors),
 so a shot costs one render.
@@ -53,10 +56,14 @@ class PhotoLook:
     framing: bool = True
     details: bool = True
     sharp: bool = True
+    tone: bool = False
 
 
-#: The earlier photo-like renders (before framing, details and sharp): the ablation's baseline.
-EARLIER_PHOTO_LOOK = PhotoLook(framing=False, details=False, sharp=False)
+#: The earlier photo-like renders (before framing, details, sharp and tone): the ablation's baseline.
+EARLIER_PHOTO_LOOK = PhotoLook(framing=False, details=False, sharp=False, tone=False)
+
+#: Display gamma of :func:`display_encode` (sRGB is close to a 2.2 power).
+DISPLAY_GAMMA = 2.2
 
 
 def person_camera(rng: np.random.Generator, lo: np.ndarray, hi: np.ndarray, ground_z: float,
@@ -286,3 +293,27 @@ def photo_frame_crop(image: np.ndarray, box, rng: np.random.Generator, size: int
     if given[2] - given[0] < 2 or given[3] - given[1] < 2:
         given = b - np.array([x0, y0, x0, y0])
     return to_square_input(crop_to_box(frame, given), size)
+
+
+def linear_look(look):
+    """``look`` with every colour it paints or reflects (paint, glass, detail colours, the
+    environment's sky, ground and cabin) turned from display values into light (a 2.2 power), for
+    a render that :func:`display_encode` encodes back."""
+    from dataclasses import replace
+
+    lin = lambda c: tuple(float(v) ** DISPLAY_GAMMA for v in c)  # noqa: E731
+    env = look.environment
+    if env is not None:
+        env = replace(env, sky=lin(env.sky), ground=lin(env.ground), interior=lin(env.interior))
+    return replace(look, paint=lin(look.paint), glass=lin(look.glass),
+                   colours={k: lin(v) for k, v in look.colours.items()}, environment=env)
+
+
+def display_encode(premultiplied: np.ndarray, alpha: np.ndarray, exposure: float) -> np.ndarray:
+    """(h, w, 3) uint8 premultiplied render of light values (:func:`linear_look`) as a camera
+    encodes it: times ``exposure``, clipped, raised to 1 / :data:`DISPLAY_GAMMA`, premultiplied
+    again by the coverage ``alpha`` (h, w)."""
+    a = alpha[..., None].astype(np.float32)
+    colour = premultiplied.astype(np.float32) / 255.0 / np.maximum(a, 1e-3)
+    shown = np.clip(colour * exposure, 0, 1) ** (1 / DISPLAY_GAMMA) * a
+    return np.clip(shown * 255 + 0.5, 0, 255).astype(np.uint8)
