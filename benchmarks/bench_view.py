@@ -449,7 +449,8 @@ def photo_row_dataset(work: Path, key: str, look: dict, args) -> Path:
     d = work / key
     if not (d / "manifest.csv").exists():
         render_dataset(d, count=args.count, seed=0, bodies_per_template=3, blends=args.blends, progress=True,
-                       vary=Variation(photo=PhotoLook(**{"tone": True} | look), photo_fraction=0.8))
+                       vary=Variation(photo=PhotoLook(**{"tone": True} | look), photo_fraction=0.8,
+                                      classic_details=False))
     return d
 
 

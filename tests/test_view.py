@@ -277,6 +277,19 @@ def test_rendered_bodies_have_wheels_lamps_and_grille_in_place(library, template
         assert v[k][:, 0].min() < 0 < v[k][:, 0].max()                           # both sides
     tyre_z = v["tyre"][:, 2]
     assert tyre_z.min() == pytest.approx(-spec.tyre_radius_mm, rel=0.01)
+    # the photo-like details: lamps and grille ahead, door mirrors standing out of the body by the
+    # side glass; the classic share of a photo-like set gets the classic details back
+    from carbody.view.dataset import classic_meshes
+
+    photo = body_meshes(spec, photo_details=True, seed=3)
+    pv = {k: np.concatenate([m.vertices for m in photo if m.name == k]) for k in ("headlight", "taillight", "mirror")}
+    assert pv["headlight"][:, 1].max() < 0 < wheelbase < pv["taillight"][:, 1].min()
+    half_width = spec.control_points_mm[:, 0].max()
+    assert pv["mirror"][:, 0].max() > half_width + 100 and pv["mirror"][:, 0].min() < -half_width - 100
+    assert 0 < pv["mirror"][:, 1].mean() < wheelbase / 2
+    back = classic_meshes(photo)
+    assert "mirror" not in {m.name for m in back}
+    assert np.allclose(np.concatenate([m.vertices for m in back if m.name == "headlight"]), v["headlight"])
 
 
 def test_a_body_that_cannot_be_surfaced_is_skipped_and_recorded(tmp_path):

@@ -150,3 +150,15 @@ def test_tone_encodes_light_as_a_camera_does():
     shown = display_encode(light, alpha, exposure=1.0)
     assert 135 < shown[0, 0, 0] < 150 and shown[0, 1, 0] == 0          # 0.28 of white shows as ~0.56
     assert shown[0, 2, 0] == pytest.approx(255 * 0.5, abs=2)            # edge pixels keep their coverage
+
+
+def test_plates_come_in_the_worlds_colours():
+    from carbody.view.photo import PhotoLook, photo_looks
+
+    rng = np.random.default_rng(0)
+    plates = np.array([photo_looks(rng, PhotoLook(plate_colours=True))[2]["plate"] for _ in range(200)])
+    red = (plates[:, 0] > 0.5) & (plates[:, 1] < 0.3)
+    yellow = (plates[:, 0] > 0.6) & (plates[:, 1] > 0.5) & (plates[:, 2] < 0.3)
+    assert 10 < red.sum() < 60 and 10 < yellow.sum() < 60
+    white = np.array([photo_looks(rng, PhotoLook())[2]["plate"] for _ in range(50)])
+    assert white.min() > 0.6                                   # without: white plates only

@@ -66,6 +66,9 @@ class Variation:
             ground and contact shadow, environment-lit paint and glass, backdrops, plates, camera
             artefacts) instead of the classic looks above; None: classic.
         photo_fraction: with ``photo``, the share of images that are photo-like (the others classic).
+        classic_details: the classic share of a photo-like data set drawn with the classic renders'
+            fixed details (:func:`classic_meshes`), not the photo-like ones (off: the ablation's
+            rows, rendered before this existed).
     """
 
     background: bool = True
@@ -74,6 +77,7 @@ class Variation:
     angle_jitter_deg: float = 3.0
     photo: "PhotoLook | None" = None
     photo_fraction: float = 1.0
+    classic_details: bool = True
 
 
 # ----------------------------------------------------------------------------------------- bodies
@@ -332,6 +336,17 @@ def photo_detail_meshes(meshes, control_points_mm: np.ndarray, rng: np.random.Ge
     out.append(_box_mesh("mirror", np.array([corner[0] - 20.0, y0, z0]),
                          np.array([half_width + rng.uniform(150, 220), y0 + length, z0 + height])))
     return out + mirrored(out)
+
+
+#: Names of the detail meshes (either kind): what :func:`classic_meshes` takes away.
+DETAIL_NAMES = ("headlight", "grille", "plate", "taillight", "mirror")
+
+
+def classic_meshes(meshes):
+    """A body's meshes with the fixed :data:`DETAILS` of the classic renders in place of whatever
+    details it carries (the photo-like ones of :func:`photo_detail_meshes`)."""
+    bare = [m for m in meshes if m.name not in DETAIL_NAMES]
+    return bare + detail_meshes(bare)
 
 
 def body_meshes(spec: BodySpec, surface_body: Callable | None = None, photo_details: bool = False,
@@ -707,13 +722,19 @@ def render_images(out: str | Path, spec: BodySpec, b: int, meshes, images: list[
 
     out = Path(out)
     scene = Scene(meshes, size=(IMAGE_SIZE, IMAGE_SIZE), antialias=2)
+    classic_scene = None
     car_length = float(np.ptp(spec.control_points_mm[:, 1]))
     rows = []
     for i, k in images:
         rng = np.random.default_rng([seed, 4, b, i])
         if vary.photo is None or rng.random() >= vary.photo_fraction:
             shot, look = sample_shot(rng, k, vary)
-            img = shoot(scene, shot, look, car_length, rng, vary)
+            if vary.classic_details and vary.photo is not None and vary.photo.details:
+                if classic_scene is None:   # the classic share looks as classic renders do
+                    classic_scene = Scene(classic_meshes(meshes), size=(IMAGE_SIZE, IMAGE_SIZE), antialias=2)
+                img = shoot(classic_scene, shot, look, car_length, rng, vary)
+            else:
+                img = shoot(scene, shot, look, car_length, rng, vary)
         else:
             shot, img = shoot_photo(scene, spec, k, rng, vary)
         rel = Path("images") / f"{int(CLASS_ANGLES_DEG[k]):03d}" / f"{spec.body_id}_{i:04d}.png"

@@ -21,6 +21,8 @@ Each switch of :class:`PhotoLook` is one row of the ablation table (docs/view_cl
   on the surface, a lower air intake, door mirrors, black trims;
 - ``sharp``: artefacts at a photo's scale (a large photo reduced to the crop is sharp and its
   JPEG blocks vanish) and sharp, busy backdrops, instead of blur and JPEG at the render's 128 px;
+- ``plate_colours``: plates as the world paints them (white, yellow, red dealer plates, black),
+  not white only, so a red patch on the car's end does not by itself say "rear";
 - ``tone``: the car's colours shaded as light (:func:`linear_look`) and encoded for display with
   an exposure (:func:`display_encode`), as a camera does; without it the renderer's linear light
   is shown as display values, so a white car's shaded flank comes out dark grey.
@@ -57,10 +59,11 @@ class PhotoLook:
     details: bool = True
     sharp: bool = True
     tone: bool = False
+    plate_colours: bool = False
 
 
 #: The earlier photo-like renders (before framing, details, sharp and tone): the ablation's baseline.
-EARLIER_PHOTO_LOOK = PhotoLook(framing=False, details=False, sharp=False, tone=False)
+EARLIER_PHOTO_LOOK = PhotoLook(framing=False, details=False, sharp=False, tone=False, plate_colours=False)
 
 #: Display gamma of :func:`display_encode` (sRGB is close to a 2.2 power).
 DISPLAY_GAMMA = 2.2
@@ -238,6 +241,11 @@ def photo_looks(rng: np.random.Generator, photo: PhotoLook):
                "grille": tuple(np.full(3, rng.uniform(0.02, 0.2))),
                "taillight": (rng.uniform(0.45, 0.85), rng.uniform(0.0, 0.08), rng.uniform(0.0, 0.08)),
                "plate": plate if photo.plates else tuple(paint)}
+    if photo.plates and photo.plate_colours:
+        kind = rng.choice(4, p=[0.6, 0.15, 0.15, 0.1])
+        base = [np.array([0.92, 0.92, 0.9]), np.array([0.95, 0.8, 0.15]), np.array([0.8, 0.12, 0.12]),
+                np.array([0.08, 0.08, 0.09])][kind]
+        colours["plate"] = tuple(np.clip(base * rng.uniform(0.75, 1.0) + rng.normal(0, 0.02, 3), 0, 1))
     if photo.details:
         black = tuple(np.full(3, rng.uniform(0.02, 0.1)))
         if rng.random() < 0.4:                         # black mirror caps (else painted)
