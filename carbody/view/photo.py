@@ -27,6 +27,9 @@ Each switch of :class:`PhotoLook` is one row of the ablation table (docs/view_cl
   an exposure (:func:`display_encode`), as a camera does; without it the renderer's linear light
   is shown as display values, so a white car's shaded flank comes out dark grey.
 
+``framing``, ``details``, ``sharp``, ``tone`` and ``plate_colours`` came with the second pass of
+issue 26; :data:`EARLIER_PHOTO_LOOK` is the first pass.
+
 Everything is numpy on the rendered picture and the scene's camera rays (no extra VTK actors),
 so a shot costs one render.
 """
@@ -58,8 +61,8 @@ class PhotoLook:
     framing: bool = True
     details: bool = True
     sharp: bool = True
-    tone: bool = False
-    plate_colours: bool = False
+    tone: bool = True
+    plate_colours: bool = True
 
 
 #: The earlier photo-like renders (before framing, details, sharp and tone): the ablation's baseline.
