@@ -305,6 +305,7 @@ def _save_checkpoint(path: Path, model, opt, sched, rng: np.random.Generator, hi
     state = {"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
              "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
              "history": {k: getattr(hist, k) for k in hist.__dataclass_fields__}}
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     torch.save(state, tmp)
     os.replace(tmp, path)
