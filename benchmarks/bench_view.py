@@ -504,12 +504,13 @@ def main_photo_ablation(args) -> None:
         if key not in only:
             continue
         d = photo_row_dataset(work, renders, look, args)
-        tag = photo_row_tag(args.epochs, size, args.width)
+        tag = photo_row_tag(args.epochs, size, args.width, args.train_seed)
         w = work / key / f"weights_{tag}.pt"
         result = work / key / f"result_{tag}.json"
         if not w.exists():
             train_view_classifier(d, w, TrainConfig(epochs=args.epochs, threads=1, zoom=True, input_size=size,
-                                                    width_mult=args.width, resume=True), progress=True)
+                                                    width_mult=args.width, seed=args.train_seed, resume=True),
+                                  progress=True)
         from carbody.view.predict import load_classifier
 
         _, meta = load_classifier(str(w))
@@ -517,14 +518,14 @@ def main_photo_ablation(args) -> None:
         row |= {"train_s": meta["history"]["seconds"], "val_acc": meta["history"]["val_acc"][-1]}
         result.write_text(json.dumps(row, indent=1))
         print(key, label, row, flush=True)
-    print_photo_ablation(work, args.epochs, args.width)
+    print_photo_ablation(work, args.epochs, args.width, args.train_seed)
 
 
-def photo_row_tag(epochs: int, size: int, width: float) -> str:
-    return f"e{epochs}_{size}px" + ("" if width == 1.0 else f"_w{width:g}")
+def photo_row_tag(epochs: int, size: int, width: float, seed: int = 0) -> str:
+    return f"e{epochs}_{size}px" + ("" if width == 1.0 else f"_w{width:g}") + ("" if seed == 0 else f"_s{seed}")
 
 
-def print_photo_ablation(work: Path, epochs: int, width: float = 1.0) -> None:
+def print_photo_ablation(work: Path, epochs: int, width: float = 1.0, seed: int = 0) -> None:
     import json
 
     print(f"photo-like ablation ({work}): per row 4800 renders (3 bodies a template, 40 blends, 80 % photo-like), "
@@ -534,7 +535,7 @@ def print_photo_ablation(work: Path, epochs: int, width: float = 1.0) -> None:
           "| full photo ±15° / ±30° | classic renders top-1 / ±15° / front-rear | photo-like renders top-1 / ±15° "
           "| train min |\n|---|---|---|---|---|---|---|")
     for key, label, _, size, _ in PHOTO_ROWS:
-        f = work / key / f"result_{photo_row_tag(epochs, size, width)}.json"
+        f = work / key / f"result_{photo_row_tag(epochs, size, width, seed)}.json"
         if not f.exists():
             continue
         r = json.loads(f.read_text())
@@ -566,6 +567,7 @@ def main() -> None:
                     help="ablation of the photo-like renders, measured on the real photos (see PHOTO_ROWS)")
     ap.add_argument("--blends", type=int, default=40, help="photo ablation: blended bodies per training set")
     ap.add_argument("--width", type=float, default=1.0, help="photo ablation: MobileNetV2 width multiplier")
+    ap.add_argument("--train-seed", type=int, default=0, help="photo ablation: training seed (a replicate's)")
     ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
