@@ -138,6 +138,8 @@ class Reconstruction:
 
     def summary(self, report: dict) -> str:
         """A few lines for a person: view, residual, accuracy when known, body checks, times."""
+        from carbody.fit.report import fit_notes, wheelbase_source
+
         fit, view = report["fit"], report["view"]
         source = view["source"]
         if source == "given":
@@ -153,10 +155,8 @@ class Reconstruction:
                f"(focal length {fit['focal_length_px']:.0f} px)" if fit["camera_turn_deg"] else ""),
             f"keypoints: {fit['keypoints_annotated']}, reprojection residual mean "
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
-            f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({fit['wheelbase_from']})",
+            f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({wheelbase_source(fit)})",
         ]
-        from carbody.fit.report import fit_notes
-
         lines += fit_notes(fit)
         if "error_mm_mean" in fit:
             lines.append(f"3D keypoint error vs truth: mean {fit['error_mm_mean']:.1f} mm, "

@@ -179,6 +179,13 @@ class FitPolicy:
     distance_passes: int = 3
     distance_agreement: float = 0.005
 
+    # ---- the car's size when no wheelbase or distance is told (carbody.fit.size)
+
+    #: The least uncertainty of each fitted proportion (length, width, height in wheelbases),
+    #: a fraction: the published figures' ±2 % and the keypoints standing in for the extents'
+    #: spread, which the fit's posterior does not know.
+    size_proportion_floor: float = 0.03
+
     # ---- the car's outline in the photo (carbody.fit.outline)
 
     #: The segmentation works on the photo scaled down to this many pixels on its longer side:

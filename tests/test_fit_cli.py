@@ -234,11 +234,12 @@ def test_fit_with_a_camera_distance_reports_it(photo):
     assert rep["camera_distance_mm"] is None or rep["camera_distance_mm"] > 30_000
     assert rep["residual_px_mean"] < 3 and "camera" in proc.stdout
     # A told distance (no wheelbase given) comes back: this photo is orthographic, too little
-    # perspective to size the car by, so the distance is read at the fitted car's wheelbase.
+    # perspective to size the car by, so the distance is read at the fitted car's own wheelbase
+    # (its proportions').
     proc = run_cli("fit", str(photo / "car.png"), "--keypoints", str(photo / "car.json"), "--view", "30",
                    "--distance", "60000", "-o", str(out / "car.step"), "--report", str(out / "r.json"), check=True)
     assert json.loads((out / "r.json").read_text())["camera_distance_mm"] == pytest.approx(60_000, rel=0.01)
-    assert re.search(r"camera (59[4-9]|60[0-6])\d\d mm away", proc.stdout) and "(library mix)" in proc.stdout
+    assert re.search(r"camera (59[4-9]|60[0-6])\d\d mm away", proc.stdout) and "(from its proportions, ±" in proc.stdout
 
 
 def test_a_close_photo_fitted_as_orthographic_says_so(tmp_path):

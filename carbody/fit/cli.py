@@ -155,7 +155,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.fit.overlay import draw_overlay, write_image
     from carbody.errors import FitRefused
     from carbody.fit.focal import focal_length_px
-    from carbody.fit.report import build_report, draw_error_chart, fit_notes, refusal_line, write_json
+    from carbody.fit.report import build_report, draw_error_chart, fit_notes, refusal_line, wheelbase_source, write_json
     from carbody.fit.options import FitOptions
     from carbody.fit.single_view import fit_wireframe
     from carbody.outputs import (JSON, PHOTO, PICTURE, STEP, check_distinct, check_not_inputs, check_output_file,
@@ -249,7 +249,7 @@ def run_fit(args: argparse.Namespace) -> int:
     told = f"given {given:g}°, " if given is not None and angular_difference(given, v.azimuth) >= 0.05 else ""
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° ({told}elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
-          f"wheelbase {result.wheelbase_mm:.0f} mm ({result.wheelbase_from}) -> {args.output}")
+          f"wheelbase {result.wheelbase_mm:.0f} mm ({wheelbase_source(report)}) -> {args.output}")
     for line in fit_notes(report):
         print(line)
     if "error_mm_mean" in report:

@@ -182,41 +182,6 @@ def _excess(values: np.ndarray, low: np.ndarray, high: np.ndarray) -> float:
     return float(0.5 * np.sum(((below + above) / EXTENT_TOLERANCE) ** 2))
 
 
-#: A car whose proportions give a wheelbase this far (a fraction, either way) from the one the fit
-#: used, the library mix's own, has an uncertain size: the report says so in a note
-#: (BENCHMARKS.md, "Wheelbase the fit estimates").
-WHEELBASE_DISAGREEMENT = 0.10
-
-
-def proportions_wheelbase_mm(shape: np.ndarray, library: Library) -> float | None:
-    """The wheelbase (mm) a car's proportions give, from its (840,) normalised shape vector.
-
-    Cars differ far less in width and height than in wheelbase (1.7–2.0 m wide; 2.3–3.7 m
-    between the wheels), so a car narrow and low in wheelbases is a long one: a log-linear
-    least-squares fit of the templates' own wheelbases on their width and height in wheelbases
-    (the templates' own models, not the expansions), read at this car's. A second opinion
-    beside the library mix's own wheelbase (which a car unlike the library — the pickup, the
-    roadster — takes from the cars it is mixed of). None for a library of fewer than four
-    templates."""
-    coef = _cached(library, "wheelbase by proportions", lambda: _proportions_fit(library))
-    if coef is None:
-        return None
-    width, _, height = _extents(np.asarray(shape, dtype=float).reshape(-1, 1))[:, 0]
-    return float(np.exp(coef @ [1.0, np.log(width), np.log(height)]))
-
-
-def _proportions_fit(library: Library) -> np.ndarray | None:
-    """(3,) coefficients of log wheelbase_mm ~ 1 + log width + log height over the templates'
-    own models (widths and heights in wheelbases), or None for fewer than four."""
-    cols = np.flatnonzero(np.all(library.factors == 1.0, axis=1))
-    if len(cols) < 4:
-        return None
-    e = _extents(np.asarray(library.S[:, cols], dtype=float))
-    X = np.column_stack([np.ones(len(cols)), np.log(e[0]), np.log(e[2])])
-    coef, *_ = np.linalg.lstsq(X, np.log(library.model_wheelbase_mm[cols]), rcond=None)
-    return coef
-
-
 def prepared_field(library: Library) -> DeformationField:
     """The photo-matching deformation field around the library's mean model, built once."""
     key = (id(library.S), library.S.shape, "field")

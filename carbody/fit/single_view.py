@@ -38,6 +38,8 @@ from carbody.fit.result import FitResult
 from carbody.fit.robust import explains_poorly, marks_noise, twin_exchanges
 from carbody.fit.search import distinct, refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
+from carbody.fit.size import SizeEstimate, estimate_size
+from carbody.fit.solve import joint_keypoint_covariance
 from carbody.fit.view_prior import ViewPrior
 from carbody.library import Library, check_library
 from carbody.tolerances import NORMALISED_WHEELBASE
@@ -118,7 +120,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             hypothesis, by_distance = size_from_told_distance(
                 hypothesis, told_mm, library, options.policy,
                 lambda distance, h: polish(scorer, scorer.hypothesis(replace(h.view, distance=distance)) or h,
-                                           free=("azimuth", "elevation")))
+                                           free=("azimuth", "elevation")),
+                lambda h: _own_wheelbase(scorer, h, library, options))
         photo_uv = hypothesis.marks.uv
         # (a told distance stays as the car was sized by it: the turned refits keep it)
         turn = turn_toward_car(hypothesis, photo_uv, plan, options.policy,
@@ -133,13 +136,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         outline_fit = None
         if photo is not None and options.outline and options.method != "paper":
             turn.hypothesis, outline_fit = _with_outline(scorer, turn, photo, uv, options)
+        size, size_by_mix = _size(scorer, turn.hypothesis, library, options), mix_wheelbase_mm(turn.hypothesis, library)
         wheelbase, source = (wheelbase_mm, "told") if wheelbase_mm is not None else \
             (by_distance, "camera distance") if by_distance is not None else \
-            (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
+            (size.wheelbase_mm, "proportions") if size is not None else \
+            (size_by_mix, "library mix")
         result = _result(turn, photo_uv, prior, library, options, wheelbase, source, name)
         result.outline = outline_fit
-        if options.refine and result.solution.posterior is not None:
-            result.solution.posterior.view_spread = view_spread(scorer, turn.hypothesis, ("azimuth", "elevation"))
+        result.size, result.wheelbase_by_mix_mm = size, size_by_mix
         if options.deforms:
             result = _deformed(result)
         closer = None
@@ -265,6 +269,26 @@ def _search_summary(scanned: list[Hypothesis], best: Hypothesis, prior: ViewPrio
     return {"prior": prior.as_dict(), "views_scanned": views, "hypotheses": len(scanned), "best_scanned": rows,
             "margin_nats": float(top[1].score - top[0].score) if len(top) > 1 else None,
             "score_nats": float(best.score)}
+
+
+def _own_wheelbase(scorer: Scorer, hypothesis: Hypothesis, library: Library, options: FitOptions) -> float:
+    """The wheelbase the fit gives a car when none is told (mm): its proportions' (:func:`_size`),
+    or, for the paper's solve, its mix's own."""
+    size = _size(scorer, hypothesis, library, options)
+    return mix_wheelbase_mm(hypothesis, library) if size is None else size.wheelbase_mm
+
+
+def _size(scorer: Scorer, hypothesis: Hypothesis, library: Library, options: FitOptions) -> SizeEstimate | None:
+    """The wheelbase the fitted car's proportions give (:mod:`carbody.fit.size`), as sure as the
+    solve's posterior says (a searched view's own spread joins it here, for the expected errors
+    too); None for the paper's solve, which keeps its mix's own (SPEC)."""
+    sol = hypothesis.solution
+    if options.method == "paper" or sol.posterior is None:
+        return None
+    if options.refine and sol.posterior.view_spread is None:
+        sol.posterior.view_spread = view_spread(scorer, hypothesis, ("azimuth", "elevation"))
+    shape = sol.shape if sol.shape is not None else library.S[:, sol.support] @ sol.H[sol.support]
+    return estimate_size(shape, joint_keypoint_covariance(sol.posterior), options.policy.size_proportion_floor)
 
 
 def _result(turn: Turn, photo_uv: np.ndarray, prior: ViewPrior, library: Library, options: FitOptions,

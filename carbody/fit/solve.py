@@ -650,6 +650,15 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     uncertainty joins it (``view_spread``); the photo-matching deformation that follows does
     not. BENCHMARKS.md measures how it compares with the leave-one-out errors.
     """
+    cov = joint_keypoint_covariance(posterior)
+    n = len(cov) // 3
+    return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
+
+
+def joint_keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
+    """(3·35, 3·35) float: the posterior covariance of all the keypoints' coordinates together
+    (x1, y1, z1, x2, …), normalised units²: what :func:`keypoint_covariance` gives per keypoint,
+    with the keypoints' covariances with each other (a length's spread is that of a difference)."""
     Bk = posterior.keypoint_basis
     BV = Bk @ posterior.V
     shrink = posterior.g ** 2 * posterior.e / (posterior.lam + posterior.g ** 2 * posterior.e)
@@ -659,8 +668,7 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     cov *= posterior.inflation
     if posterior.view_spread is not None:  # already at the marks' own noise level
         cov += posterior.view_spread.T @ posterior.view_spread
-    n = len(Bk) // 3
-    return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
+    return cov
 
 
 _SCALE_GRID = np.geomspace(0.1, 10.0, 21)  # the scale search's first grid, × the unregularised scale
