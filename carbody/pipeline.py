@@ -367,7 +367,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             (``"front 30"``, ``"front 30 right"``: :func:`carbody.camera.read_view`): a prior on
             the fit's search over every view; None takes the shipped view classifier's
             probabilities as that prior.
-        wheelbase_mm: the car's real wheelbase; None uses the fitted mix of the templates'.
+        wheelbase_mm: the car's real wheelbase; None: from the fitted car's proportions.
         elevation_deg: the camera elevation told (a prior of the search).
         camera_distance_mm: how far the camera stood from the car's centre (a pinhole camera:
             nearer parts look larger); "auto" (default: photos are taken from a few metres)

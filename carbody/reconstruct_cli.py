@@ -21,8 +21,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "or a name ('front 30', 'rear 30 right'): a prior on the search over every view; "
                         "default: the shipped view classifier's probabilities")
     p.add_argument("--wheelbase", type=float, default=None,
-                   help="the car's wheelbase in mm (default: fitted); told, the fit also knows "
-                        "the car's width and height in mm")
+                   help="the car's wheelbase in mm (default: from the fitted car's proportions); "
+                        "told, the fit also knows the car's width and height in mm")
     p.add_argument("--elevation", type=float, default=0.0,
                    help="camera elevation told, degrees (default 0: a prior of the search)")
     add_camera_arguments(p)

@@ -81,7 +81,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="camera roll of a tilted photo, degrees within ±90 (default 0; kept as given: the "
                         "refinement moves azimuth and elevation only)")
     p.add_argument("--wheelbase", type=float, default=None,
-                   help="real wheelbase, mm (default: the fitted mix of the templates' own); "
+                   help="real wheelbase, mm (default: from the fitted car's proportions); "
                         "told, the fit also knows the car's width and height in mm")
     p.add_argument("--exclude-template", action="append", default=[], metavar="NAME",
                    help="drop a template and its expansions from the library (repeatable)")

@@ -64,7 +64,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         library: the model library (default the shipped one, :func:`carbody.library.default_library`).
         image_size: (width, height) px; keypoints off the image are refused.
         wheelbase_mm: the real wheelbase, if known (the Gaussian-prior methods then also know
-            the car's width and height in mm); default the fitted mix of the templates' own.
+            the car's width and height in mm); default from the fitted car's proportions
+            (:mod:`carbody.fit.size`; the paper's method: its mix's own).
         options: how to fit (:class:`FitOptions`); ``changes`` set its fields by keyword.
         name: the car's name (STEP product).
         photo: the photo ((h, w, 3) uint8 RGB) or the car already cut out of it
