@@ -404,17 +404,77 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
     for key in ("length", "width", "wheelbase"):
         row[f"{key}_err_pct"] = pct_error(row["fitted_mm"][key], published.get(key))
-    for region, part in REGION_PARTS:
-        if part in photo.parts:
-            human, ours = part_union(photo, part), projected_region(camera, cp, region)
-            union = human.union(ours).area
-            row["iou"][region] = float(human.intersection(ours).area / union) if union > 0 else 0.0
-    wheels = annotated_wheel_centres(photo)
-    if len(wheels):
-        d = [m[2] for m in wheel_matches(wheels, projected_wheel_centres(camera, cp))]
-        row["wheel_dist_px"] = float(np.mean(d))
+    row["iou"], row["wheel_dist_px"] = how_it_sits(photo, camera, cp)
+    if row["wheel_dist_px"] is not None:
         row["wheel_dist_pct"] = 100.0 * row["wheel_dist_px"] / size
     return row
+
+
+def how_it_sits(photo: Photo, camera: dict, control_points: np.ndarray) -> tuple[dict, float | None]:
+    """({region: IoU or None}, mean wheel-centre distance px or None) of a fitted car projected
+    with ``camera`` (the report's) against the photo's human polygons (module docstring)."""
+    iou = {r: None for r, _ in REGION_PARTS}
+    for region, part in REGION_PARTS:
+        if part in photo.parts:
+            human, ours = part_union(photo, part), projected_region(camera, control_points, region)
+            union = human.union(ours).area
+            iou[region] = float(human.intersection(ours).area / union) if union > 0 else 0.0
+    wheels = annotated_wheel_centres(photo)
+    if not len(wheels):
+        return iou, None
+    return iou, float(np.mean([m[2] for m in wheel_matches(wheels, projected_wheel_centres(camera, control_points))]))
+
+
+def estimate_check(photos: list[Photo], rows: list[dict], out: Path) -> list[dict]:
+    """For each photo whose view was found more than ``VIEW_OK_DEG`` from the estimate: the car
+    fitted again with the estimate kept (``carbody fit --view EST --no-refine``, the elevation
+    found, ``--force``), and how each sits on the human polygons. The estimate is by eye
+    (±10°): where the view kept at it sits worse on what the people drew, the estimate is the
+    likelier one to be off."""
+    from carbody.wireframe import read_wireframe
+
+    checks = []
+    for photo, row in zip(photos, rows):
+        if row["outcome"] != "body" or row["view_diff_deg"] is None or row["view_diff_deg"] <= VIEW_OK_DEG:
+            continue
+        folder = out / f"{photo.name}.at_estimate"
+        folder.mkdir(exist_ok=True)
+        elevation = json.loads((out / photo.name / "report.json").read_text())["view"]["elevation_deg"]
+        cmd = [sys.executable, "-m", "carbody", "fit", str(photo.image), "-k", str(photo.marks),
+               "--view", f"{row['view_estimate_deg']:g}", "--elevation", f"{elevation:.2f}", "--no-refine",
+               "--force", "-q", "-o", str(folder / "wireframe.step"), "--report", str(folder / "report.json")]
+        proc = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+        if proc.returncode != 0:
+            checks.append({"photo": photo.name, "error": proc.stderr.strip().splitlines()[-1:]})
+            continue
+        report = json.loads((folder / "report.json").read_text())
+        iou, wheels = how_it_sits(photo, report["camera"], read_wireframe(folder / "wireframe.step").control_points)
+        size = row["image_size_px"]
+        checks.append({"photo": photo.name, "estimate_deg": row["view_estimate_deg"],
+                       "found_deg": row["view_found_deg"], "found": {
+                           "residual_pct": row["residual_pct"], "iou": row["iou"],
+                           "wheel_dist_pct": row["wheel_dist_pct"]},
+                       "at_estimate": {"residual_pct": 100.0 * report["residual_px_mean"] / size, "iou": iou,
+                                       "wheel_dist_pct": None if wheels is None else 100.0 * wheels / size}})
+    return checks
+
+
+def estimate_table(checks: list[dict]) -> str:
+    """The views found off the estimate against the estimate kept (:func:`estimate_check`)."""
+    lines = ["| photo | view found / estimate ° | residual % found / at estimate | IoU windshield | IoU rear window "
+             "| IoU hood | wheel centres % |", "|---|---|---|---|---|---|---|"]
+    for c in checks:
+        if "error" in c:
+            lines.append(f"| {c['photo'].removeprefix('cps_')} | fit at the estimate failed: {' '.join(c['error'])} "
+                         "| | | | | |")
+            continue
+        f, e = c["found"], c["at_estimate"]
+        pair = lambda a, b, spec=".2f": f"{fmt(a, spec)} / {fmt(b, spec)}" if a is not None else ""  # noqa: E731
+        lines.append(f"| {c['photo'].removeprefix('cps_')} | {c['found_deg']:.0f} / {c['estimate_deg']:g} "
+                     f"| {pair(f['residual_pct'], e['residual_pct'], '.1f')} | "
+                     + " | ".join(pair(f["iou"][r], e["iou"][r]) for r, _ in REGION_PARTS)
+                     + f" | {pair(f['wheel_dist_pct'], e['wheel_dist_pct'], '.1f')} |")
+    return "\n".join(lines)
 
 
 # --- tables ----------------------------------------------------------------------------------
@@ -691,6 +751,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-sheet", action="store_true", help="skip the contact sheet")
     ap.add_argument("--outline", action="store_true",
                     help="reconstruct with --outline: the car's outline in the photo fitted with the marks")
+    ap.add_argument("--check-estimates", action="store_true",
+                    help="refit each photo whose view was found more than 15° from the estimate with the "
+                         "estimate kept, and compare how the two sit on the human polygons")
     args = ap.parse_args(argv)
 
     if not (args.data / "parts.json").exists():
@@ -723,11 +786,17 @@ def main(argv: list[str] | None = None) -> int:
     if messages:
         print(messages + "\n")
     print(summary_table(summary))
+    checks = estimate_check(photos, rows, args.out) if args.check_estimates else None
+    if checks:
+        print("\nViews found more than 15° from the estimate, against the estimate kept (found / at the "
+              "estimate; the elevation found):\n")
+        print(estimate_table(checks))
     if sheet is not None:
         print(f"\ncontact sheet: {sheet}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"machine": machine, "rows": rows, "summary": summary,
+                                         "estimate_checks": checks,
                                          "contact_sheet": None if sheet is None else str(sheet)}, indent=1))
     return 0
 
