@@ -137,11 +137,12 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         outline_fit = None
         if photo is not None and options.outline and options.method != "paper":
             turn.hypothesis, outline_fit = _with_outline(scorer, turn, photo, uv, options)
-        size, size_by_mix = _size(scorer, turn.hypothesis, library, options), mix_wheelbase_mm(turn.hypothesis, library)
+        size = _size(scorer, turn.hypothesis, library, options)
+        size_by_mix = None if turn.hypothesis.solution.H is None else mix_wheelbase_mm(turn.hypothesis, library)
         wheelbase, source = (wheelbase_mm, "told") if wheelbase_mm is not None else \
             (by_distance, "camera distance") if by_distance is not None else \
             (size.wheelbase_mm, "proportions") if size is not None else \
-            (size_by_mix, "library mix")
+            (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
         result = _result(turn, photo_uv, prior, library, options, wheelbase, source, name)
         result.outline = outline_fit
         result.size, result.wheelbase_by_mix_mm = size, size_by_mix
