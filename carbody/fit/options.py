@@ -59,6 +59,8 @@ class FitOptions:
             (:mod:`carbody.fit.outline`; the Gaussian-prior methods). Off by default: on the
             real-photo benchmark it narrows the width and wheelbase errors but widens the
             length's (docs/outline.md).
+        wheels: given the photo, find the wheels' hubs in it and fit them too, beside the
+            marks (:mod:`carbody.fit.wheels`; the Gaussian-prior methods).
         policy: the thresholds (:class:`carbody.policy.FitPolicy`).
     """
 
@@ -74,6 +76,7 @@ class FitOptions:
     check_orthographic: bool = False
     view_prior_weight: float = 1.0
     outline: bool = False
+    wheels: bool = False
     policy: FitPolicy = field(default=FIT_POLICY, repr=False)
 
     def __post_init__(self) -> None:
