@@ -351,14 +351,50 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
                       > policy.wheel_separation * PATCH_ARCH_PX], default=0.0)
         support = circle_support(edges, np.array(top[1:]), radii_px, policy.wheel_sectors, policy.wheel_alignment)
         outer = np.flatnonzero(support >= (floor + cap) / 2)
-        best = (top[0], runner, top[1:], H, aspect, float(radii_px[outer[-1]]) if len(outer) else 0.0)
+        best = (top[0], runner, np.array(top[1:]), H, aspect, float(radii_px[outer[-1]]) if len(outer) else 0.0,
+                edges, float(radii_px[np.argmax(support)]))
     if best is None:
         return None
-    score, runner, (c, r), H, aspect, rim = best
+    score, runner, centre, H, aspect, outer, edges, rim = best
     if score < policy.wheel_min_score or score < policy.wheel_min_margin * runner:
         return None
-    uv = apply_homography(H, np.array([c + 0.5, r + 0.5]))  # (pixel centres)
-    return uv, score, runner, rim * radius_px / PATCH_ARCH_PX, aspect
+    ellipse = rim_ellipse_centre(edges, centre, rim, policy.wheel_sectors)
+    if ellipse is not None and np.hypot(*(ellipse - centre)) < policy.wheel_separation * PATCH_ARCH_PX:
+        centre = ellipse
+    uv = apply_homography(H, centre + 0.5)  # (pixel centres)
+    return uv, score, runner, outer * radius_px / PATCH_ARCH_PX, aspect
+
+
+def rim_ellipse_centre(edges: PatchEdges, centre: np.ndarray, radius: float, sectors: int,
+                       band: float = 0.15, alignment: float = 0.8, rounds: int = 3) -> np.ndarray | None:
+    """(2,) patch pixels: the centre of the ellipse that the edges along a wheel's strongest
+    circle (about ``centre`` (2,), ``radius`` px: the rim's edge, mostly) follow, or None.
+
+    The warped patch shows the wheel as a circle only as far as the view found is right: a few
+    degrees off in azimuth, elevation or distance, it is an ellipse, stretched and sheared. The
+    edges within ``band`` of the circle whose gradient lies along its normal (cosine above
+    ``alignment``) are fitted with an ellipse (OpenCV's AMS), and again with the edges along
+    that ellipse, ``rounds`` times; the centre is kept when the edges used run round at least
+    half of it (by ``sectors``) and it is no stretched blob."""
+    import cv2
+
+    c, axes, angle = np.asarray(centre, float), np.array([radius, radius]), 0.0
+    for _ in range(rounds):
+        rot = np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
+        local = (edges.xy - c) @ rot.T / axes  # the ellipse's own frame, unit circle
+        rho = np.hypot(local[:, 0], local[:, 1])
+        normal = (local / np.maximum(rho, 1e-9)[:, None] / axes) @ rot  # the ellipse's normal, photo frame
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        along = np.abs(np.einsum("ij,ij->i", normal, edges.g)) > alignment
+        near = along & (np.abs(rho - 1.0) < band)
+        if near.sum() < 12:
+            return None
+        (cx, cy), (w, h), degrees = cv2.fitEllipseAMS(edges.xy[near].astype(np.float32))
+        if not (w > 0 and h > 0) or not 0.6 < w / h < 1.0 / 0.6:
+            return None
+        c, axes, angle = np.array([cx, cy]), np.array([w, h]) / 2, np.radians(degrees)
+    seen = np.unique(((np.arctan2(*(edges.xy[near] - c).T[::-1]) + np.pi) / (2 * np.pi) * sectors).astype(int))
+    return c if len(seen) >= sectors / 2 else None
 
 
 @dataclass
