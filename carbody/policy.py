@@ -237,13 +237,14 @@ class FitPolicy:
     wheel_min_radius_px: float = 12.0
 
     #: The hub is looked for within this many arch radii of where the fit puts it (the arch
-    #: clearance and the view's error move it less), on circles of these radii (arch radii: the
-    #: rim's edge and the spokes' arcs inside, the tyre's outline out to the arch).
+    #: clearance and the view's error move it by less), on circles of these radii (arch radii:
+    #: the rim's edge and the spokes' arcs inside, the tyre's outline out to the arch).
     wheel_window: float = 1.0
     wheel_radii: tuple[float, float] = (0.3, 1.05)
 
     #: Stretches of the warped patch along the car that are tried: the view found is a few
-    #: degrees off, which stretches the wheel's circle into an ellipse.
+    #: degrees off, which stretches the wheel's circle into an ellipse (most near edge-on: at
+    #: 20° off it, 5° of azimuth stretch it by a quarter).
     wheel_aspects: tuple[float, ...] = (0.62, 0.7, 0.79, 0.89, 1.0, 1.12, 1.26, 1.41)
 
     #: At least this share of the warped patch must lie on the photo (else the wheel is cut off).
@@ -261,11 +262,12 @@ class FitPolicy:
     #: best ``wheel_candidates`` are scored so.
     wheel_sectors: int = 24
     wheel_alignment: float = 0.9
-    wheel_candidates: int = 24
+    wheel_candidates: int = 8
 
-    #: A hub is found when its score is at least ``wheel_min_score`` (about three circles, each
-    #: over half supported) and ``wheel_min_margin`` times the best centre more than
-    #: ``wheel_separation`` arch radii away: clutter and a body panel score alike everywhere.
+    #: A hub is found when its score is at least ``wheel_min_score`` (a circle whole all round
+    #: counts about 1.5: more than one such circle) and ``wheel_min_margin`` times the best
+    #: centre more than ``wheel_separation`` arch radii away: clutter and a body panel score
+    #: alike everywhere.
     wheel_min_score: float = 1.8
     wheel_min_margin: float = 1.5
     wheel_separation: float = 0.35

@@ -184,3 +184,21 @@ def test_hub_rows_are_a_keypoint_s_rows_for_a_hub():
     hubs = HubTargets.of(found, project(hub_points(shape)[[0]], view), np.ones(1))
     L, c, target = _outline_rows(hubs, M, const, uv, view, shape, idx)
     assert np.allclose(L @ shape + c, target, atol=1e-6)
+
+
+def test_a_circle_is_supported_all_round_and_a_straight_edge_adds_nothing():
+    """The score counts circles by the sectors they run through: a ring's edge all of them; a
+    straight edge (a spoke, a sill) a few, where the circles cross or touch it, under the
+    floor below which a circle adds nothing."""
+    import cv2
+
+    from carbody.fit.wheels import circle_support, patch_edges
+
+    patch = np.full((120, 120), 200, np.float32)
+    cv2.circle(patch, (60, 60), 30, 40.0, -1, cv2.LINE_AA)
+    cv2.rectangle(patch, (0, 100), (119, 119), 90.0, -1)  # a straight edge below
+    edges = patch_edges(patch, np.ones_like(patch, bool))
+    radii = np.arange(10.0, 50.0)
+    support = circle_support(edges, np.array([60.0, 60.0]), radii, 24, 0.9)[0]
+    assert support[np.argmin(np.abs(radii - 30))] > 0.9
+    assert support[np.abs(radii - 30) > 2].max() < FIT_POLICY.wheel_circle_floor  # (4 sectors of 24)

@@ -11,19 +11,27 @@ photo shows the wheels. Three steps:
    back onto the plane (:func:`wheel_patch`), where the wheel is a circle again whatever the
    view. There the tyre's outline, the rim's edge and the arcs of the spokes' openings are
    circles about the hub. Every edge pixel (Canny) votes along its gradient, both ways, for the
-   centres at every radius (a circular Hough transform, :func:`concentric_score`); a centre
-   scores the share of each circle round it that edges support, capped, summed over the radii.
-   The hub, where several concentric circles meet, stands out from a single round thing (a
-   lamp, a badge) and from clutter. The view found is a few degrees off, so the patch is tried
-   stretched along the car by a few factors (``wheel_aspects``) and the best kept.
+   centres at every radius (a circular Hough transform, :func:`hough_centres`); its best peaks
+   are then scored exactly (:func:`circle_support`): for each radius, the share of equal
+   sectors round the centre where an edge of one polarity lies on the circle across it. A
+   circle adds its share above a floor, up to a cap (:func:`concentric_score`), so the hub,
+   where several concentric circles meet, stands out from a single round thing (a lamp, a
+   badge), from spokes' and panels' straight edges, and from clutter. The view found is a few
+   degrees off, which stretches the wheel in the patch: the patch is tried stretched along the
+   car by several factors (``wheel_aspects``), and the hub is finally the centre of the ellipse
+   that the edges along the strongest circle, the rim's, follow (:func:`rim_ellipse_centre`).
    A hub is found when its score is high (``wheel_min_score``) and clearly above the best
-   elsewhere in the window (``wheel_min_margin``). A wheel the camera sees edge-on, one too
-   small, cut off by the frame or in a patch with no clear circles gives no hub, and no rows.
+   elsewhere in the window (``wheel_min_margin``). A wheel the camera sees nearly edge-on, one
+   too small, cut off by the frame or in a patch with no clear circles gives no hub, and no
+   rows.
 2. :class:`HubTargets`: each hub found is a pseudo-observation of the same linear solve as the
    marks (:func:`carbody.fit.solve.solve_gauss`'s ``hubs``). The hub is a fixed point of every
    library model: its x is the arch top's (the tyre's outer face, which the photo shows), its
    (y, z) the midpoint of the arch's points level with it. So its projection is linear in the
-   shape like a keypoint's, and its rows bind the camera and the car's track.
+   shape like a keypoint's, and its rows bind the camera and the car's track. The templates
+   share one arch clearance, so the library cannot move a hub against the body round it: with
+   hubs found, the solve's prior gains the body's height on its wheels
+   (:func:`ride_height_direction`, ``wheel_ride_height_sd``).
 3. :func:`follow_wheels` solves with them at the view found, a few times: a hub the marks and
    the prior put far from where it was found is weighted down (Cauchy), so one wrong find
    cannot bend the car. The view's score stays the marks' own (the wheels shape the car, they
@@ -141,7 +149,8 @@ def grey_photo(image: np.ndarray) -> np.ndarray:
 
 
 def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, offset: np.ndarray,
-                policy: FitPolicy, to_photo: np.ndarray | None = None) -> list[WheelFound]:
+                policy: FitPolicy, to_photo: np.ndarray | None = None,
+                wheels: tuple[str, ...] = WHEELS) -> list[WheelFound]:
     """The hubs the photo shows where a fitted car puts its wheels (module docstring, step 1).
 
     Args:
@@ -149,6 +158,7 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
         shape: (840,) the fitted car, normalised units; view, scale, offset: its camera.
         policy: the ``wheel_*`` thresholds.
         to_photo: (3, 3) from the fit camera's pixels to the photo's (a turned camera), or None.
+        wheels: the wheels to look for (names of :data:`WHEELS`).
     Returns:
         the hubs found, at most one per wheel.
     """
@@ -163,7 +173,7 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
 
     found = []
     for name, hub, radius in zip(WHEELS, hubs, radii):
-        if not radius > 0:
+        if name not in wheels or not radius > 0:
             continue
         toward = d if view.distance is None else \
             np.asarray(view.aim) + view.distance * d - hub  # a pinhole sees each hub from its own side
@@ -255,52 +265,59 @@ def patch_edges(patch: np.ndarray, valid: np.ndarray) -> PatchEdges:
     return PatchEdges(np.stack([xs, ys], axis=1).astype(float), g.astype(float), n)
 
 
-def hough_centres(edges: PatchEdges, radii_px: np.ndarray, floor: float, cap: float) -> np.ndarray:
-    """(n, n) float: a fast first score of every patch pixel as the centre of concentric
-    circles (a circular Hough transform): each edge pixel votes along its gradient, both ways,
-    for the centres at every radius (``radii_px``, 1 px apart); a circle adds the share of its
-    circumference voting (within a pixel of centre and radius, one polarity) less ``floor``,
-    up to ``cap`` less ``floor`` (module docstring). Candidates for :func:`circle_support`."""
-    import cv2
-
-    n = edges.size
+def hough_centres(edges: PatchEdges, radii_px: np.ndarray, floor: float, cap: float, reach: float) -> np.ndarray:
+    """(n, n) float: a fast first score of the patch pixels within ``reach`` px of its centre
+    (0 elsewhere) as the centre of concentric circles (a circular Hough transform): each edge
+    pixel votes along its gradient, both ways, for the centres at every radius (``radii_px``,
+    1 px apart); a circle adds the share of its circumference voting (within a pixel of
+    centre and radius, one polarity) less ``floor``, up to ``cap`` less ``floor`` (module
+    docstring). Candidates for :func:`circle_support`."""
+    n, m = edges.size, len(radii_px)
+    score = np.zeros((n, n))
     if not len(edges.xy):
-        return np.zeros((n, n))
-    votes = np.zeros((2, len(radii_px), n * n), np.float32)
-    for k, rho in enumerate(radii_px):
-        for side, sign in enumerate((1.0, -1.0)):  # the centre on the brighter side, or the darker
-            c = np.round(edges.xy + sign * rho * edges.g).astype(np.int64)
-            ok = (c >= 0).all(axis=1) & (c < n).all(axis=1)
-            votes[side, k] = np.bincount(c[ok, 1] * n + c[ok, 0], minlength=n * n)
-    share = np.stack([cv2.boxFilter(v, -1, (3, 3), normalize=False) for v in votes.reshape(-1, n, n)])
-    share = share.reshape(2, len(radii_px), n, n).max(axis=0) / (2 * np.pi * radii_px)[:, None, None]
+        return score
+    lo, hi = max(0, int(n / 2 - reach) - 1), min(n, int(np.ceil(n / 2 + reach)) + 2)  # the window's square
+    w = hi - lo
+    # every (polarity, radius, edge) vote at once: the centre on the brighter side, or the darker
+    step = np.array([1.0, -1.0])[:, None, None, None] * radii_px[None, :, None, None] * edges.g[None, None]
+    at = np.round(edges.xy + step).astype(np.int64) - lo  # (2, m, e, 2)
+    ok = (at >= 0).all(axis=-1) & (at < w).all(axis=-1)
+    layer = np.arange(2 * m).reshape(2, m, 1)
+    index = (layer * w + at[..., 1]) * w + at[..., 0]
+    votes = np.bincount(index[ok], minlength=2 * m * w * w).reshape(2, m, w, w).astype(np.float32)
+    padded = np.pad(votes, ((0, 0), (0, 0), (1, 1), (1, 1)))
+    rows = padded[:, :, :-2] + padded[:, :, 1:-1] + padded[:, :, 2:]
+    box = rows[..., :-2] + rows[..., 1:-1] + rows[..., 2:]  # votes within a pixel of each centre
+    share = box.max(axis=0) / (2 * np.pi * radii_px)[:, None, None]
     padded = np.pad(share, ((1, 1), (0, 0), (0, 0)))
     share = np.maximum(share, np.maximum(padded[:-2], padded[2:]))  # a circle a pixel off its radius
-    return np.clip(share - floor, 0.0, cap - floor).sum(axis=0)
+    score[lo:hi, lo:hi] = np.clip(share - floor, 0.0, cap - floor).sum(axis=0)
+    return score
 
 
-def circle_support(edges: PatchEdges, centre: np.ndarray, radii_px: np.ndarray, sectors: int,
+def circle_support(edges: PatchEdges, centres: np.ndarray, radii_px: np.ndarray, sectors: int,
                    alignment: float) -> np.ndarray:
-    """(m,) float: for each circle about ``centre`` (2,) of radius ``radii_px`` (m,), 1 px apart,
-    the share of its ``sectors`` equal angular sectors in which an edge pixel lies within a
-    pixel of it with its gradient along the radius (cosine above ``alignment``), counted for
-    each polarity (brighter inside, brighter outside) and the larger taken. A straight edge —
-    a spoke, a panel's line — meets a circle in one or two sectors; a wheel's circles run all
-    round it, or round its visible part."""
-    d = edges.xy - centre
-    r = np.hypot(d[:, 0], d[:, 1])
-    near = r > 0.5
-    d, r, g = d[near], r[near], edges.g[near]
-    cosine = np.einsum("ij,ij->i", d, g) / r
-    sector = ((np.arctan2(d[:, 1], d[:, 0]) + np.pi) / (2 * np.pi) * sectors).astype(int) % sectors
-    k = np.round(r - radii_px[0]).astype(int)
-    hit = np.zeros((2, len(radii_px) + 2, sectors), bool)
+    """(c, m) float: for each circle about each of ``centres`` (c, 2) of radius ``radii_px``
+    (m,), 1 px apart, the share of its ``sectors`` equal angular sectors in which an edge pixel
+    lies within a pixel of it with its gradient along the radius (cosine above
+    ``alignment``), counted for each polarity (brighter inside, brighter outside) and the
+    larger taken. A straight edge — a spoke, a panel's line — meets a circle in a few sectors;
+    a wheel's circles run all round it, or round its visible part."""
+    centres = np.atleast_2d(np.asarray(centres, dtype=float))
+    d = edges.xy[None] - centres[:, None]  # (c, e, 2)
+    r = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-9)
+    cosine = np.einsum("cei,ei->ce", d, edges.g) / r
+    sector = ((np.arctan2(d[..., 1], d[..., 0]) + np.pi) / (2 * np.pi) * sectors).astype(np.int64) % sectors
+    k = np.round(r - radii_px[0]).astype(np.int64)
+    m = len(radii_px)
+    hit = np.zeros((len(centres), 2, m + 2, sectors), bool)
+    which = np.broadcast_to(np.arange(len(centres))[:, None], k.shape)
     for side, aligned in enumerate((cosine > alignment, cosine < -alignment)):
         for dk in (-1, 0, 1):  # a circle a pixel off its radius
-            kk = k[aligned] + dk + 1
-            ok = (kk >= 1) & (kk <= len(radii_px))
-            hit[side, kk[ok], sector[aligned][ok]] = True
-    return hit[:, 1:-1].mean(axis=2).max(axis=0)
+            kk = k + dk + 1
+            use = aligned & (kk >= 1) & (kk <= m)
+            hit[which[use], side, kk[use], sector[use]] = True
+    return hit[:, :, 1:-1].mean(axis=3).max(axis=1)
 
 
 def concentric_score(support: np.ndarray, floor: float, cap: float) -> float:
@@ -328,28 +345,27 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
         if valid.mean() < policy.wheel_min_inside:
             return None  # the wheel is mostly off the photo
         edges = patch_edges(patch, valid)
-        rough = hough_centres(edges, radii_px, floor, cap).astype(np.float32)
+        rough = hough_centres(edges, radii_px, floor, cap, window * PATCH_ARCH_PX).astype(np.float32)
         n = patch.shape[0]
         yy, xx = np.mgrid[0:n, 0:n] - n / 2
         rough[(np.hypot(xx, yy) > window * PATCH_ARCH_PX) | ~valid] = -1.0
         peaks = (rough == cv2.dilate(rough, np.ones((5, 5), np.uint8))) & (rough > 0)
         rows, cols = np.nonzero(peaks)
         order = np.argsort(rough[rows, cols])[::-1][:policy.wheel_candidates]
-        scored = []
-        for r, c in zip(rows[order], cols[order]):
-            # the rough peak is a pixel or two off: the support is read round it
-            tries = [(concentric_score(circle_support(edges, np.array([c + dc, r + dr], float), radii_px,
-                                                      policy.wheel_sectors, policy.wheel_alignment), floor, cap),
-                      float(c + dc), float(r + dr)) for dr in (-1, 0, 1) for dc in (-1, 0, 1)]
-            scored.append(max(tries))
-        if not scored:
+        if not len(order):
             continue
+        # the rough peaks are a pixel or two off: the support is read round each
+        shifts = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]), axis=-1).reshape(-1, 2)
+        centres = (np.stack([cols[order], rows[order]], axis=1)[:, None] + shifts[None]).reshape(-1, 2)
+        support = circle_support(edges, centres, radii_px, policy.wheel_sectors, policy.wheel_alignment)
+        values = np.clip(support - floor, 0.0, cap - floor).sum(axis=1).reshape(len(order), len(shifts))
+        scored = [(float(v.max()), *map(float, centres[i * len(shifts) + int(v.argmax())])) for i, v in enumerate(values)]
         top = max(scored)
         if best is not None and top[0] <= best[0]:
             continue
         runner = max([s for s, c, r in scored if np.hypot(c - top[1], r - top[2])
                       > policy.wheel_separation * PATCH_ARCH_PX], default=0.0)
-        support = circle_support(edges, np.array(top[1:]), radii_px, policy.wheel_sectors, policy.wheel_alignment)
+        support = circle_support(edges, np.array(top[1:]), radii_px, policy.wheel_sectors, policy.wheel_alignment)[0]
         outer = np.flatnonzero(support >= (floor + cap) / 2)
         best = (top[0], runner, np.array(top[1:]), H, aspect, float(radii_px[outer[-1]]) if len(outer) else 0.0,
                 edges, float(radii_px[np.argmax(support)]))
@@ -468,9 +484,8 @@ def follow_wheels(scorer, hypothesis, image: np.ndarray, to_photo: np.ndarray | 
     (the hypothesis with the new solution, :class:`WheelsFit`, the :class:`HubTargets` of the
     last solve or None). Its score stays the marks'.
 
-    The hubs are looked for again at the car fitted to those found (``wheel_rounds``): the
-    wheels then sit nearer where the car puts them, and a wheel missed at first (its window
-    off it) can be found."""
+    The wheels not found are looked for again at the car fitted to those found
+    (``wheel_rounds``): a wheel missed at first, its window off it, can then be found."""
     policy = scorer.policy
     start = time.perf_counter()
     grey = grey_photo(image)
@@ -480,10 +495,11 @@ def follow_wheels(scorer, hypothesis, image: np.ndarray, to_photo: np.ndarray | 
     h, found, hubs, weight = hypothesis, {}, None, None
     for _ in range(policy.wheel_rounds):
         sol = h.solution
-        again = find_wheels(grey, sol.shape, sol.view or h.view, sol.scale, sol.offset, policy, to_photo)
-        found.update({f.wheel: f for f in again})  # a hub found again is read where the fit now puts it
-        if not found:
-            break
+        missing = tuple(w for w in WHEELS if w not in found)
+        again = find_wheels(grey, sol.shape, sol.view or h.view, sol.scale, sol.offset, policy, to_photo, missing)
+        if not again:
+            break  # (nothing new: the last solve stands)
+        found.update({f.wheel: f for f in again})
         wheels = [found[w] for w in WHEELS if w in found]
         h, hubs, weight = _with_hubs(scorer, hypothesis, wheels, to_photo, sigma)
     seconds = time.perf_counter() - start
