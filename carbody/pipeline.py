@@ -356,7 +356,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
                 principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
                 name: str | None = None, library=None, reject_outliers: bool = True,
-                view_prior_weight: float = 1.0, outline: bool = False, wheels: bool = False, force: bool = False,
+                view_prior_weight: float = 1.0, outline: bool = False, wheels: bool = True, force: bool = False,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
 
@@ -389,7 +389,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
         outline: cut the car out of the photo and fit its outline with the marks
             (:mod:`carbody.fit.outline`); False: the marks alone.
         wheels: find the wheels' hubs in the photo and fit them with the marks
-            (:mod:`carbody.fit.wheels`).
+            (:mod:`carbody.fit.wheels`); False: the marks alone.
         force: give the car even when the fit explains the marks badly.
         on_stage: called with each stage's name as it starts (progress display).
 

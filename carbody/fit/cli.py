@@ -23,9 +23,9 @@ def add_marks_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--outline", action=argparse.BooleanOptionalAction, default=False,
                    help="also cut the car out of the photo and fit its outline with the marks "
                         "(default off, --no-outline: the marks alone; docs/outline.md)")
-    p.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=False,
-                   help="also find the wheels' hubs in the photo and fit them with the marks "
-                        "(default off, --no-wheels: the marks alone; docs/wheels.md)")
+    p.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=True,
+                   help="find the wheels' hubs in the photo and fit them with the marks (default "
+                        "on; --no-wheels: the marks alone; docs/wheels.md)")
 
 
 def add_camera_arguments(p: argparse.ArgumentParser) -> None:
