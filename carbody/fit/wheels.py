@@ -45,6 +45,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from carbody.camera import View, apply_homography, camera_direction, perspective_factors, project
+from carbody.errors import AngleError
+from carbody.fit.solve import MAX_PERSPECTIVE_FACTOR
 from carbody.policy import FitPolicy
 from carbody.wireframe import POINTS_PER_CURVE
 
@@ -183,11 +185,14 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
         centre = to_px(hub)
         if not (0 <= centre[0] < w and 0 <= centre[1] < h):
             continue
-        k = 1.0 if view.distance is None else float(perspective_factors(hub, view))
+        k = 1.0 if view.distance is None else float(perspective_factors(hub, view, MAX_PERSPECTIVE_FACTOR))
         radius_px = radius * scale * k
         if radius_px * policy.wheel_tyre_share < policy.wheel_min_radius_px:
             continue
-        hit = _find_hub(grey, to_px, hub, radius, radius_px, policy)
+        try:
+            hit = _find_hub(grey, to_px, hub, radius, radius_px, policy)
+        except AngleError:  # the patch reaches behind a camera close by: no wheel to see there
+            continue
         if hit is not None:
             found.append(WheelFound(name, hit[0], centre, *hit[1:]))
     return found
@@ -220,11 +225,9 @@ def wheel_patch(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, half: f
     H = cv2.getPerspectiveTransform(corners.astype(np.float32), photo.astype(np.float32))
     reduced = np.diag([reduce, reduce, 1.0]) @ H
     patch = cv2.warpPerspective(grey, reduced, (n, n), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)
-    inside = cv2.warpPerspective(np.ones_like(grey, dtype=np.uint8), reduced, (n, n),
-                                 flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_CONSTANT,
-                                 borderValue=0)
-    return patch, inside > 0, H
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
+    inside = np.isfinite(patch)  # (off the photo: NaN, and the pixels that blend with it)
+    return np.where(inside, patch, 0.0).astype(np.float32), inside, H
 
 
 @dataclass(frozen=True)
@@ -320,10 +323,10 @@ def circle_support(edges: PatchEdges, centres: np.ndarray, radii_px: np.ndarray,
     return hit[:, :, 1:-1].mean(axis=3).max(axis=1)
 
 
-def concentric_score(support: np.ndarray, floor: float, cap: float) -> float:
-    """A centre's score from its circles' :func:`circle_support` (m,): each adds its share
-    less ``floor``, up to ``cap`` less ``floor`` (module docstring)."""
-    return float(np.clip(support - floor, 0.0, cap - floor).sum())
+def concentric_score(support: np.ndarray, floor: float, cap: float) -> np.ndarray:
+    """(...) float: centres' scores from their circles' :func:`circle_support` (..., m): each
+    circle adds its share less ``floor``, up to ``cap`` less ``floor`` (module docstring)."""
+    return np.clip(support - floor, 0.0, cap - floor).sum(axis=-1)
 
 
 def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px: float, policy: FitPolicy):
@@ -358,7 +361,7 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
         shifts = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]), axis=-1).reshape(-1, 2)
         centres = (np.stack([cols[order], rows[order]], axis=1)[:, None] + shifts[None]).reshape(-1, 2)
         support = circle_support(edges, centres, radii_px, policy.wheel_sectors, policy.wheel_alignment)
-        values = np.clip(support - floor, 0.0, cap - floor).sum(axis=1).reshape(len(order), len(shifts))
+        values = concentric_score(support, floor, cap).reshape(len(order), len(shifts))
         scored = [(float(v.max()), *map(float, centres[i * len(shifts) + int(v.argmax())])) for i, v in enumerate(values)]
         top = max(scored)
         if best is not None and top[0] <= best[0]:
