@@ -157,6 +157,13 @@ def test_the_wheels_bring_the_hubs_of_a_lifted_car_down_to_the_photo_s(lifted, l
     assert wheeled.solution.residual_px.mean() < 1.5 * alone.solution.residual_px.mean() + 0.5
 
 
+def test_a_wheels_option_that_is_no_yes_or_no_is_refused_in_one_line():
+    from carbody.errors import FitError
+
+    with pytest.raises(FitError, match="wheels must be True or False"):
+        FitOptions(wheels="yes")
+
+
 def test_the_ride_height_moves_the_body_and_keeps_the_hubs():
     shape = np.random.default_rng(0).normal(size=840)
     lifted = shape + 7.0 * ride_height_direction()
