@@ -14,7 +14,7 @@ beside its folder (``OUT/<photo>.run.json``; its output in ``OUT/<photo>.stdout.
 
     python benchmarks/bench_real_photos.py [--photos N | NAME ...] [--workers 1] [--out DIR]
                                            [--data DIR] [--json FILE] [--reuse] [--blas-threads N]
-                                           [--timeout S] [--no-sheet] [--outline]
+                                           [--timeout S] [--no-sheet] [--outline] [--[no-]wheels]
 
 Outcomes: ``body`` (exit 0 and a ``body.step``), ``refused`` (exit 2 with one line
 ``carbody reconstruct: error: ...`` and no traceback: the table shows the line), ``error``
@@ -55,7 +55,9 @@ Definitions (per photo):
   puts several wheels in one annotation); its centre is the polygon's centroid. Annotated
   wheels are assigned one-to-one to projected centres minimising the total distance (the
   nearest, without two wheels taking the same centre); the photo's figure is the mean distance
-  over its annotated wheels, % of S.
+  over its annotated wheels, % of S. Beside it, the mean signed vertical offset (annotated −
+  projected, + down: the projected centre above the annotated one). The polygon is the visible
+  tyre, whose top the fender hides, so its centroid lies somewhat below the hub.
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); medians over the photos where a figure is defined (the count
   in brackets); wall time median and max.
@@ -386,7 +388,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "view_found_deg": None, "view_diff_deg": None, "view_source": None, "residual_px_mean": None,
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
            "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
-           "wheel_dist_px": None, "fallback": None, "camera_check_px": None, "mirrored_half": None}
+           "wheel_dist_px": None, "wheel_dv_pct": None, "fallback": None, "camera_check_px": None,
+           "mirrored_half": None}
     if outcome != "body":
         return row
     report, wireframe = fitted(folder)
@@ -404,15 +407,18 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
     for key in ("length", "width", "wheelbase"):
         row[f"{key}_err_pct"] = pct_error(row["fitted_mm"][key], published.get(key))
-    row["iou"], row["wheel_dist_px"] = how_it_sits(photo, camera, cp)
+    row["iou"], row["wheel_dist_px"], dv_px = how_it_sits(photo, camera, cp)
     if row["wheel_dist_px"] is not None:
         row["wheel_dist_pct"] = 100.0 * row["wheel_dist_px"] / size
+        row["wheel_dv_pct"] = 100.0 * dv_px / size
     return row
 
 
-def how_it_sits(photo: Photo, camera: dict, control_points: np.ndarray) -> tuple[dict, float | None]:
-    """({region: IoU or None}, mean wheel-centre distance px or None) of a fitted car projected
-    with ``camera`` (the report's) against the photo's human polygons (module docstring)."""
+def how_it_sits(photo: Photo, camera: dict, control_points: np.ndarray) -> tuple[dict, float | None, float | None]:
+    """({region: IoU or None}, mean wheel-centre distance px, mean signed vertical offset px —
+    annotated below projected positive —; both None without annotated wheels) of a fitted car
+    projected with ``camera`` (the report's) against the photo's human polygons (module
+    docstring)."""
     iou = {r: None for r, _ in REGION_PARTS}
     for region, part in REGION_PARTS:
         if part in photo.parts:
@@ -421,8 +427,11 @@ def how_it_sits(photo: Photo, camera: dict, control_points: np.ndarray) -> tuple
             iou[region] = float(human.intersection(ours).area / union) if union > 0 else 0.0
     wheels = annotated_wheel_centres(photo)
     if not len(wheels):
-        return iou, None
-    return iou, float(np.mean([m[2] for m in wheel_matches(wheels, projected_wheel_centres(camera, control_points))]))
+        return iou, None, None
+    projected = projected_wheel_centres(camera, control_points)
+    matches = wheel_matches(wheels, projected)
+    return (iou, float(np.mean([m[2] for m in matches])),
+            float(np.mean([wheels[i, 1] - projected[j, 1] for i, j, _ in matches])))
 
 
 def estimate_check(photos: list[Photo], rows: list[dict], out: Path) -> list[dict]:
@@ -448,7 +457,7 @@ def estimate_check(photos: list[Photo], rows: list[dict], out: Path) -> list[dic
             checks.append({"photo": photo.name, "error": proc.stderr.strip().splitlines()[-1:]})
             continue
         report = json.loads((folder / "report.json").read_text())
-        iou, wheels = how_it_sits(photo, report["camera"], read_wireframe(folder / "wireframe.step").control_points)
+        iou, wheels, _ = how_it_sits(photo, report["camera"], read_wireframe(folder / "wireframe.step").control_points)
         size = row["image_size_px"]
         checks.append({"photo": photo.name, "estimate_deg": row["view_estimate_deg"],
                        "found_deg": row["view_found_deg"], "found": {
@@ -554,6 +563,7 @@ def summarise(rows: list[dict]) -> dict:
         **{f"iou_{k}_measured": sum(r["iou"][k] is not None for r in rows) for k, _ in REGION_PARTS},
         "median_wheel_dist_pct": median_or_none(r["wheel_dist_pct"] for r in rows),
         "wheel_dist_measured": sum(r["wheel_dist_pct"] is not None for r in rows),
+        "median_wheel_dv_pct": median_or_none(r["wheel_dv_pct"] for r in rows),
         "median_time_s": statistics.median(times) if times else None, "max_time_s": max(times, default=None),
         "median_cpu_s": statistics.median(cpu) if cpu else None, "max_cpu_s": max(cpu, default=None),
         "fallbacks": sum(bool(r["fallback"]) for r in rows),
@@ -588,6 +598,8 @@ def summary_table(s: dict) -> str:
              f"| median IoU hood ↔ hood | {with_n('hood')} |",
              f"| median wheel-centre distance, % of the car's image size | "
              f"{fmt(s['median_wheel_dist_pct'], '.1f') or '–'} (of {s['wheel_dist_measured']}) |",
+             f"| median signed vertical offset of those centres, annotated − projected (+: the projected "
+             f"centre above), % | {fmt(s['median_wheel_dv_pct'], '.1f', signed=True) or '–'} |",
              f"| time per photo (wall), median / max | {fmt(s['median_time_s'], '.1f')} / "
              f"{fmt(s['max_time_s'], '.1f')} s |",
              f"| CPU time per photo (user + system), median / max | {fmt(s['median_cpu_s'], '.1f')} / "
@@ -754,6 +766,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--check-estimates", action="store_true",
                     help="refit each photo whose view was found more than 15° from the estimate with the "
                          "estimate kept, and compare how the two sit on the human polygons")
+    ap.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=None,
+                    help="reconstruct with --wheels (or --no-wheels): the wheels' hubs found in the photo "
+                         "fitted with the marks (default: as reconstruct's default)")
     args = ap.parse_args(argv)
 
     if not (args.data / "parts.json").exists():
@@ -766,8 +781,9 @@ def main(argv: list[str] | None = None) -> int:
     def run_one(photo: Photo) -> dict:
         run = stored_run(photo, args.out) if args.reuse else None
         if run is None:
-            run = run_photo(photo, args.out, args.timeout, args.blas_threads,
-                            ("--outline",) if args.outline else ())
+            extra = ("--outline",) * args.outline + \
+                (() if args.wheels is None else ("--wheels",) if args.wheels else ("--no-wheels",))
+            run = run_photo(photo, args.out, args.timeout, args.blas_threads, extra)
             print(f"{photo.name}: exit {run['exit_code']} in {run['seconds']:.1f} s", file=sys.stderr, flush=True)
         return run
 

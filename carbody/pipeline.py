@@ -356,7 +356,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
                 principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
                 name: str | None = None, library=None, reject_outliers: bool = True,
-                view_prior_weight: float = 1.0, outline: bool = False, force: bool = False,
+                view_prior_weight: float = 1.0, outline: bool = False, wheels: bool = True, force: bool = False,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
 
@@ -388,6 +388,8 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             search (a factor on its −log prior; 0: the marks alone).
         outline: cut the car out of the photo and fit its outline with the marks
             (:mod:`carbody.fit.outline`); False: the marks alone.
+        wheels: find the wheels' hubs in the photo and fit them with the marks
+            (:mod:`carbody.fit.wheels`); False: the marks alone.
         force: give the car even when the fit explains the marks badly.
         on_stage: called with each stage's name as it starts (progress display).
 
@@ -414,7 +416,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     name = name or (image_path.stem if image_path else "car")
     options = FitOptions(camera_distance_mm=camera_distance_mm, principal_point=principal_point,
                          robust=reject_outliers, check_orthographic=True, view_prior_weight=view_prior_weight,
-                         outline=outline)
+                         outline=outline, wheels=wheels)
     prior = None if view is None else View(read_view(view), elevation_deg)
     focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
 

@@ -76,7 +76,7 @@ def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) ->
                                  elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
                                  principal_point=args.principal_point, focal_35mm=args.focal_35mm,
                                  reject_outliers=not args.keep_marks, view_prior_weight=args.view_weight,
-                                 outline=args.outline, force=args.force, on_stage=on_stage)
+                                 outline=args.outline, wheels=args.wheels, force=args.force, on_stage=on_stage)
         except CarbodyError as exc:
             partial = getattr(exc, "partial", None)
             if partial is None:

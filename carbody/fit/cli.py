@@ -9,7 +9,7 @@ from carbody.fit.solve import METHODS
 
 
 def add_marks_argument(p: argparse.ArgumentParser) -> None:
-    """``--keep-marks``, ``--view-weight``, ``--outline`` and ``--force``, shared by ``fit`` and
+    """``--keep-marks``, ``--view-weight``, ``--outline``, ``--wheels`` and ``--force``, shared by ``fit`` and
     ``reconstruct``."""
     p.add_argument("--force", action="store_true",
                    help="give the car even when it explains the marks badly (by default such a fit "
@@ -23,6 +23,9 @@ def add_marks_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--outline", action=argparse.BooleanOptionalAction, default=False,
                    help="also cut the car out of the photo and fit its outline with the marks "
                         "(default off, --no-outline: the marks alone; docs/outline.md)")
+    p.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=True,
+                   help="find the wheels' hubs in the photo and fit them with the marks (default "
+                        "on; --no-wheels: the marks alone; docs/wheels.md)")
 
 
 def add_camera_arguments(p: argparse.ArgumentParser) -> None:
@@ -204,10 +207,10 @@ def run_fit(args: argparse.Namespace) -> int:
         options = FitOptions(method=args.method, refine=not args.no_refine, deform=False if args.no_deform else None,
                              robust=not args.keep_marks, camera_distance_mm=distance,
                              principal_point=args.principal_point, focal_px=focal, check_orthographic=True,
-                             view_prior_weight=args.view_weight, outline=args.outline)
+                             view_prior_weight=args.view_weight, outline=args.outline, wheels=args.wheels)
         result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                                options=options, name=args.name or Path(args.image).stem,
-                               photo=image[..., ::-1] if options.outline else None)
+                               photo=image[..., ::-1] if options.outline or options.wheels else None)
         overlay = draw_overlay(image, result) if args.overlay else None
         # (the photo plane reads the photo again: only for a report that is written)
         report = build_report(result, truth, image=args.image if args.report else None)

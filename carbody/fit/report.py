@@ -99,6 +99,9 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         # the car's outline in the photo fitted with the marks: used or why not, how many outline
         # points the last solve used, their median distance to the car's edge before and after
         "outline": None if result.outline is None else result.outline.as_dict(),
+        # the wheels' hubs found in the photo and fitted with the marks: each hub's pixel, score,
+        # robust weight, and the fitted hub's distance from it before and after
+        "wheels": None if result.wheels is None else result.wheels.as_dict(),
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
         # the templates the fit mixed (fewer than 14 when some were excluded)

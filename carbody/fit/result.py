@@ -54,6 +54,8 @@ class FitResult:
         joint_field: whether the solve had the local displacement field in its prior.
         outline: what the car's outline in the photo did to the fit
             (:class:`~carbody.fit.outline.OutlineFit`), or None when it was not asked.
+        wheels: what the wheels' hubs found in the photo did to the fit
+            (:class:`~carbody.fit.wheels.WheelsFit`), or None when it was not asked.
         diagnostics: what the fit says about the marks and the view
             (:class:`~carbody.fit.diagnostics.FitDiagnostics`: marks left out and why, names
             read exchanged, suspect marks, how well the car explains the marks, the search).
@@ -78,6 +80,7 @@ class FitResult:
     solve_residual_px: np.ndarray | None = field(default=None, repr=False)
     joint_field: bool = True
     outline: "OutlineFit | None" = None
+    wheels: "WheelsFit | None" = None
     diagnostics: FitDiagnostics = field(default_factory=FitDiagnostics)
 
     @property

@@ -16,8 +16,9 @@ The algorithm, in :func:`fit_wireframe`:
    its twin's name — as discrete hypotheses of the same measure (:func:`~carbody.fit.robust.twin_exchanges`);
 4. correct the camera where that needs refits (:mod:`carbody.fit.fit_camera`): a told distance
    sizes the car, an off-centre car turns the camera toward it;
-5. given the photo, fit the car's outline in it with the marks at the view found
-   (:mod:`carbody.fit.outline`): the shape between the marks from what the photo shows there;
+5. given the photo, fit the wheels' hubs found in it (:mod:`carbody.fit.wheels`) and the car's
+   outline in it (:mod:`carbody.fit.outline`) with the marks at the view found: the shape
+   between the marks from what the photo shows there;
 6. build the car in mm, move it onto the marks (:mod:`carbody.fit.deform`) and say what the fit
    found (:func:`~carbody.fit.diagnostics.diagnose`).
 """
@@ -70,7 +71,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         name: the car's name (STEP product).
         photo: the photo ((h, w, 3) uint8 RGB) or the car already cut out of it
             (:class:`~carbody.fit.outline.CarOutline`): with ``options.outline``, the car's
-            outline is fitted with the marks (the Gaussian-prior methods).
+            outline is fitted with the marks, and with ``options.wheels`` (the photo itself)
+            the wheels' hubs (the Gaussian-prior methods).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
         AngleError: a view outside 0–360° or rolled past ±90°.
@@ -134,9 +136,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             if adapted is not scorer:
                 scorer, turn.hypothesis = adapted, polish(adapted, adapted.hypothesis(turn.hypothesis.view)
                                                           or turn.hypothesis, free=_polisher_free(options, plan))
+        wheels_fit = hubs = None
+        if isinstance(photo, np.ndarray) and options.wheels and options.method != "paper":
+            from carbody.fit.wheels import follow_wheels
+
+            turn.hypothesis, wheels_fit, hubs = follow_wheels(scorer, turn.hypothesis, photo, turn.to_photo)
         outline_fit = None
         if photo is not None and options.outline and options.method != "paper":
-            turn.hypothesis, outline_fit = _with_outline(scorer, turn, photo, uv, options)
+            turn.hypothesis, outline_fit = _with_outline(scorer, turn, photo, uv, options, hubs)
         size = _size(scorer, turn.hypothesis, library, options)
         size_by_mix = None if turn.hypothesis.solution.H is None else mix_wheelbase_mm(turn.hypothesis, library)
         wheelbase, source = (wheelbase_mm, "told") if wheelbase_mm is not None else \
@@ -144,7 +151,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             (size.wheelbase_mm, "proportions") if size is not None else \
             (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
         result = _result(turn, photo_uv, prior, library, options, wheelbase, source, name)
-        result.outline = outline_fit
+        result.outline, result.wheels = outline_fit, wheels_fit
         result.size, result.wheelbase_by_mix_mm = size, size_by_mix
         if options.deforms:
             result = _deformed(result)
@@ -159,13 +166,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
     return result
 
 
-def _with_outline(scorer: Scorer, turn: Turn, photo, marks_uv: np.ndarray, options: FitOptions):
+def _with_outline(scorer: Scorer, turn: Turn, photo, marks_uv: np.ndarray, options: FitOptions, hubs=None):
     """The found hypothesis fitted to the car's outline in the photo too (cut out here unless
-    given cut out), and what the outline did (:func:`~carbody.fit.outline.follow_outline`)."""
+    given cut out), with the hubs found in it if any, and what the outline did
+    (:func:`~carbody.fit.outline.follow_outline`)."""
     from carbody.fit.outline import CarOutline, follow_outline, segment_car
 
     outline = photo if isinstance(photo, CarOutline) else segment_car(photo, marks_uv, options.policy)
-    return follow_outline(scorer, turn.hypothesis, outline, turn.to_photo)
+    return follow_outline(scorer, turn.hypothesis, outline, turn.to_photo, hubs)
 
 
 def _view_prior(view, options: FitOptions) -> ViewPrior:

@@ -519,7 +519,7 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
 def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[KeypointSlot],
                 uv: np.ndarray, view: View, prior_weight: float = DEFAULT_PRIOR_WEIGHT,
                 mixture: bool = False, rounds: int = PERSPECTIVE_ITERATIONS,
-                outline: "OutlineTargets | None" = None) -> MixSolution:
+                outline: "OutlineTargets | None" = None, hubs: "HubTargets | None" = None) -> MixSolution:
     """MAP shape under the library's Gaussian shape prior, with the image's scale and offset.
 
     Args:
@@ -534,6 +534,8 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
             (:class:`carbody.fit.outline.OutlineTargets`), pseudo-observations of their own
             noise: each pins its point's projection along the outline's normal. The image
             offset stays the marks' (the outline rows are centred on the marks' mean).
+        hubs: the wheels' hubs found in the photo (:class:`carbody.fit.wheels.HubTargets`),
+            pseudo-observations like the outline's, each with its own noise.
 
     A pinhole view (``view.distance``) is aimed at the car's centre and solved by Newton rounds:
     linearise the camera and set the aim at the current shape, solve, repeat
@@ -541,6 +543,8 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     """
     from dataclasses import replace
 
+    if hubs is not None and hubs.directions is not None:  # what only the hubs show (the ride height)
+        model = model.with_field(hubs.directions)
     q = model.basis.shape[1]
     mk = model.mean.reshape(-1, 3)[point_indices].ravel()
     Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
@@ -549,7 +553,7 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         if view.distance is not None:
             view = replace(view, aim=car_centre(shape))
         sol = _solve_gauss_linear(model, mk, Bk, point_indices, slots, uv, view, shape, prior_weight, mixture,
-                                  outline)
+                                  outline, hubs)
         shape = sol.shape
     sol.view = view
     return sol
@@ -564,18 +568,19 @@ def car_centre(shape: np.ndarray) -> tuple[float, float, float]:
 
 def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point_indices: np.ndarray,
                         slots: list[KeypointSlot], uv: np.ndarray, view: View, guess: np.ndarray,
-                        prior_weight: float, mixture: bool, outline=None) -> MixSolution:
+                        prior_weight: float, mixture: bool, outline=None, hubs=None) -> MixSolution:
     """:func:`solve_gauss` with the camera linearised at the shape ``guess`` (840,)."""
     M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, guess.reshape(-1, 3)[point_indices])
     AB = (Mc @ Bk) / model.size
     am = (Mc @ mk + cc) / model.size
     marks_rows = len(b)
-    if outline is not None and len(outline):
-        L, c, target = _outline_rows(outline, M, const, z, view, guess, point_indices)
-        w = 1.0 / outline.noise_ratio
-        AB = np.vstack([AB, w * (L @ model.basis) / model.size])
-        am = np.concatenate([am, w * (L @ model.mean + c) / model.size])
-        b = np.concatenate([b, w * target / rho])
+    for pseudo in (outline, hubs):
+        if pseudo is not None and len(pseudo):
+            L, c, target = _outline_rows(pseudo, M, const, z, view, guess, point_indices)
+            w = 1.0 / np.broadcast_to(np.asarray(pseudo.noise_ratio, dtype=float), len(target))
+            AB = np.vstack([AB, w[:, None] * (L @ model.basis) / model.size])
+            am = np.concatenate([am, w * (L @ model.mean + c) / model.size])
+            b = np.concatenate([b, w * target / rho])
     if mixture and model.group_means is not None:
         # One Gaussian per template centre, shared covariance; the posterior mean of the mixture.
         deltas, gs, _, nle, (V, e) = _map_coefficients(am + model.group_means @ AB.T, AB, b, prior_weight)
@@ -611,10 +616,11 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
 
 def _outline_rows(outline, M: np.ndarray, const: np.ndarray, z: np.ndarray, view: View, guess: np.ndarray,
                   point_indices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The outline's pseudo-observations as rows of the centred solve: each matched point's
-    projection along its normal, less the marks' mean projection (the image offset is the
-    marks'), as a linear function L·shape + c (scale 1) of the (840,) shape vector, and its
-    target n·(edge − the marks' mean), px.
+    """The outline's (or the hubs') pseudo-observations as rows of the centred solve: each
+    matched point's projection along its normal, less the marks' mean projection (the image
+    offset is the marks'), as a linear function L·shape + c (scale 1) of the (840,) shape
+    vector, and its target n·(edge − the marks' mean), px. A point's ``weights`` are (n, 280),
+    or (n, 280, 3) for a point whose coordinates come from different control points (a hub).
 
     Args:
         M, const: the marks' camera rows (:func:`camera_rows`); z: (k, 2) their pixels.
@@ -623,7 +629,8 @@ def _outline_rows(outline, M: np.ndarray, const: np.ndarray, z: np.ndarray, view
     grad, offset = point_camera(outline.points(guess), view)  # (n, 2, 3), (n, 2)
     n = outline.normals
     along = np.einsum("na,nac->nc", n, grad) * outline.mirror  # (n, 3): d(n·uv)/d(control point)
-    L = (outline.weights[:, :, None] * along[:, None, :]).reshape(len(n), -1)
+    weights = outline.weights if outline.weights.ndim == 3 else outline.weights[:, :, None]
+    L = (weights * along[:, None, :]).reshape(len(n), -1)
     marks_mean = np.stack([M[0::2].mean(axis=0), M[1::2].mean(axis=0)])  # (2, 35, 3)
     centre = np.einsum("na,akc->nkc", n, marks_mean)
     rows = L.reshape(len(n), -1, 3)
