@@ -145,11 +145,17 @@ print("RESULT " + json.dumps({{
 def test_reconstruct_runs_in_a_qprocess_with_its_progress_while_freecad_keeps_running(tmp_path):
     """The GUI's Reconstruct runs carbody in a QProcess: FreeCAD's event loop keeps turning (a
     timer ticks all along), each stage line comes as the command writes it, a failure ends in
-    its one line, and the whole job hands over the wireframe read back as wireframe JSON."""
+    its one line, and the whole job hands over the wireframe read back as wireframe JSON and
+    the editable body surfaced from it (its shape read, its report)."""
     fake = tmp_path / "fake_carbody.py"
     fake.write_text("import sys, time\n"
                     "if sys.argv[1] == 'wireframe':\n"
                     "    open(sys.argv[4], 'w').write('{\"file\": \"' + sys.argv[2].rsplit('/', 1)[-1] + '\"}'); sys.exit(0)\n"
+                    "if sys.argv[1] == 'surface':  # a box for a body, from the wireframe JSON read back\n"
+                    "    import json, shutil\n"
+                    "    shutil.copy(sys.argv[0].replace('fake_carbody.py', 'box.step'), sys.argv[4])\n"
+                    "    json.dump({'faces': [], 'folds': [], 'from': json.load(open(sys.argv[2]))}, open(sys.argv[6], 'w'))\n"
+                    "    sys.exit(0)\n"
                     "if sys.argv[1] == 'fail':\n"
                     "    print('carbody reconstruct: error: the keypoints are coincident', file=sys.stderr); sys.exit(2)\n"
                     "for stage in ('view', 'fit', 'surfaces', 'write'):\n"
@@ -158,7 +164,9 @@ def test_reconstruct_runs_in_a_qprocess_with_its_progress_while_freecad_keeps_ru
     result = run_freecad(f"""
 import json, sys, time, FreeCAD
 from PySide import QtCore
+import Part
 from carbody_wb import core
+Part.makeBox(10, 20, 30).exportStep({str(tmp_path / "box.step")!r})
 app = QtCore.QCoreApplication.instance() or QtCore.QCoreApplication([])
 command = [{sys.executable!r}, {str(fake)!r}]
 events = []
@@ -180,7 +188,8 @@ bad = run(["fail"])
 loop = QtCore.QEventLoop()
 said, finished = [], {{}}
 def job_done(ok, result):
-    finished.update(ok=ok, result=result); loop.quit()
+    shape, report = result["surfaced"]
+    finished.update(ok=ok, wire_json=result["wire_json"], faces=len(shape.Faces), report=report); loop.quit()
 core.ReconstructJob("car.png", "car.json", {str(tmp_path / "out")!r}, command=command, on_progress=said.append,
                     on_done=job_done).start()
 loop.exec_()
@@ -194,8 +203,11 @@ print("RESULT " + json.dumps({{"good": good, "bad": bad, "events": events, "tick
     # the lines came as they were written, and the timer ticked in between: nothing blocked
     assert stages[-1][0] - stages[0][0] > 0.6 and stages[-1][2] - stages[0][2] >= 8
     assert not bad["ok"] and bad["message"] == "carbody reconstruct: error: the keypoints are coincident"
-    assert result["job"] == {"ok": True, "result": {"file": "wireframe.step"}}
-    assert result["said"] == ["stage view", "stage fit", "stage surfaces", "stage write", "reading the wireframe back"]
+    job = result["job"]
+    assert job["ok"] and job["wire_json"] == {"file": "wireframe.step"} and job["faces"] == 6
+    assert job["report"] == {"faces": [], "folds": [], "from": {"file": "wireframe.step"}}
+    assert result["said"] == ["stage view", "stage fit", "stage surfaces", "stage write", "reading the wireframe back",
+                              "surfacing the editable body"]
 
 
 #: A carbody command for the GUI test: ``reconstruct`` writes its stage lines and a prepared
