@@ -413,7 +413,11 @@ function renderSide() {
   $("ask-desc").textContent = k ? `#${k.id}: ${k.description}` : "Save, or Reconstruct.";
   let hint = "";
   if (c && c in s.marks) hint = "marked: drag it to move it, Backspace removes it";
-  else if (c && fit.ok && fit.ghosts[c]) hint = `click it on the photo, or Enter to accept the ghost (±${fit.ghosts[c].sd_px.toFixed(0)} px), or drag the ghost`;
+  else if (c && fit.ok && fit.ghosts[c]) {
+    const g = fit.ghosts[c];
+    hint = `click it on the photo, or Enter to accept the ghost (±${g.sd_px.toFixed(0)} px), or drag the ghost; ` +
+      "H if the photo does not show it";
+  }
   else if (c) hint = "click it on the photo, H if the photo does not show it";
   $("ask-hint").textContent = hint;
   $("accept").disabled = !(c && fit.ok && fit.ghosts[c]);
