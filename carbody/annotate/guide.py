@@ -128,6 +128,7 @@ def markable(cosine: float) -> float:
     return float(np.clip((cosine - FACING_COS) / (FACING_SURE - FACING_COS), 0.0, 1.0))
 
 
+@functools.lru_cache(maxsize=64)  # (before a fit the view is one of a few guesses)
 def shown_names(view: View) -> list[str]:
     """The names the reference car shows from ``view`` (both halves, id order)."""
     from carbody.fit import visible_keypoints
@@ -159,6 +160,7 @@ def ask_order(view: View, marks: dict, hidden: set[str], ghosts: dict[str, dict]
     return first + spread_order(view, [n for n in left if n not in sure], {**dict(marks), **{n: None for n in first}})
 
 
+@functools.lru_cache(maxsize=64)
 def surely_seen(view: View) -> list[str]:
     """The names the reference car shows squarely (:func:`markable` 1) from ``view`` and from
     views :data:`GUESS_SPREAD_DEG` either side of it: what to ask before a fit, when the view is
