@@ -50,7 +50,8 @@ Definitions:
   answer came: the worker still fitting the click before). Clicks and accepts (a quick fit
   each) apart from H presses (answered with the fit there is). The full fit's time is from the
   edit to its landing. The quick fit's *processor time* (its thread's) is what the update costs
-  on an idle machine: a busy one stretches the wall clock, not that. How far the quick fit's
+  on an idle machine: a busy one stretches the wall clock, not that; the server's processor time
+  per click adds the page's state and its JSON to it. How far the quick fit's
   keypoints (ghosts and reprojected marks) lie from the full fit's that replaces it, median
   over the keypoints, per edit.
 
@@ -94,6 +95,7 @@ class Client:
             "Content-Type": "application/json", "X-Carbody-Token": self.token})
         with urllib.request.urlopen(req, timeout=60) as r:
             raw = r.read()
+            self.server_cpu_ms = float(r.headers.get("X-Carbody-CPU-ms") or "nan")
         return json.loads(raw) if raw else None
 
     def state(self) -> dict:
@@ -168,7 +170,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
         try:
             ref = Reference(hand, session.image_size, session.prior, args.accept, args.draws)
             state = client.state()
-            actions, rows, latencies, refined_s, quick_cpu, quick_off = 0, [], [], [], [], []
+            actions, rows, latencies, refined_s, quick_cpu, quick_off, server_cpu = 0, [], [], [], [], [], []
             guess = state["view"]["azimuth_deg"]
             picked = None
             if angular(guess, ref.fit.view.azimuth) > 30.0:
@@ -193,6 +195,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
                     latencies.append((op, ms))
                     if op != "hide":  # (an H press is answered without a fit)
                         quick_cpu.append(state["fit"]["cpu_seconds"] * 1000.0)
+                        server_cpu.append(client.server_cpu_ms)
                     if not state["refined"]:
                         landed = client.refined(state["revision"])
                         if landed is not None:
@@ -229,7 +232,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
             "actions_to_end": actions, "accepted": sum(r["op"] == "accept" for r in rows),
             "stopped_settled": bool(rows and rows[-1]["settled"]), "same_when_stopped": bool(rows and rows[-1]["same"]),
             "hidden": sum(r["op"] == "hide" for r in rows), "latency_ms": latencies, "quick_fit_cpu_ms": quick_cpu,
-            "quick_off_full_px": quick_off, "refined_s": refined_s,
+            "quick_off_full_px": quick_off, "refined_s": refined_s, "server_cpu_ms": server_cpu,
             "rows": rows}
 
 
@@ -426,6 +429,8 @@ def main(argv=None) -> int:
     print(f"latency, brisk clicks:  {percentiles(brisk)}")
     cpu = [ms for r in results for ms in r["quick_fit_cpu_ms"]]
     print(f"the quick fit's processor time, paused clicks: {percentiles(cpu)}")
+    server = [ms for r in results for ms in r["server_cpu_ms"]]
+    print(f"the server's processor time per click (the fit, the state, the JSON): {percentiles(server)}")
     if refined:
         print(f"full fit landed after: median {np.median(refined):.2f} s, max {max(refined):.2f} s")
     off = [v for r in results for v in r["quick_off_full_px"] if np.isfinite(v)]
