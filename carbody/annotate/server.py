@@ -171,6 +171,7 @@ class _Handler(BaseHTTPRequestHandler):
     # ---- GET
 
     def do_GET(self) -> None:
+        self._started_cpu = None  # (one handler serves a kept-alive connection's every request)
         if not self._host_ok():
             return self._error(HTTPStatus.FORBIDDEN, "wrong host")
         url = urlsplit(self.path)
