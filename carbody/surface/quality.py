@@ -13,6 +13,7 @@ wireframe curve overlap on a common curve-parameter interval.
 """
 from __future__ import annotations
 
+import functools
 from collections import defaultdict
 
 import numpy as np
@@ -97,13 +98,24 @@ def scaled_jacobian(net: np.ndarray) -> float:
     return worst
 
 
+@functools.lru_cache(maxsize=4)
+def _grid_bases(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The Bernstein bases and their derivatives at an n x n grid's u and v, (n², 4) each: the
+    same for every face (read only)."""
+    t = np.linspace(0, 1, n)
+    u, v = (a.ravel() for a in np.meshgrid(t, t, indexing="ij"))
+    bases = _bern(u), _bern(v), _dbern(u), _dbern(v)
+    for b in bases:
+        b.flags.writeable = False
+    return bases
+
+
 def surface_jacobian(net: np.ndarray, n: int = 9) -> float:
     """Smallest scaled Jacobian of the surface itself on an n x n grid: (S_u x S_v)·n̄ / (|S_u||S_v|),
     n̄ the face's mean normal; negative where the parametrisation folds over."""
-    t = np.linspace(0, 1, n)
-    u, v = (a.ravel() for a in np.meshgrid(t, t, indexing="ij"))
-    su = np.einsum("mi,mj,ijd->md", _dbern(u), _bern(v), net)
-    sv = np.einsum("mi,mj,ijd->md", _bern(u), _dbern(v), net)
+    bu, bv, du, dv = _grid_bases(n)
+    su = np.einsum("mi,mj,ijd->md", du, bv, net)
+    sv = np.einsum("mi,mj,ijd->md", bu, dv, net)
     cr = _cross(su, sv)
     mean = cr.sum(axis=0)
     mean /= np.linalg.norm(mean)
