@@ -60,7 +60,8 @@ Definitions (per photo):
   tyre, whose top the fender hides, so its centroid lies somewhat below the hub.
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); medians over the photos where a figure is defined (the count
-  in brackets); wall time median and max.
+  in brackets); wall time median and max; the fit and surface stages' wall times
+  (``report["timings_s"]``: in a fresh process they include the imports each stage makes).
 - **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``
   not null).
 - **Camera check**: the marks kept by the fit, reprojected here from ``keypoints_mm`` with the
@@ -389,7 +390,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
            "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
            "wheel_dist_px": None, "wheel_dv_pct": None, "fallback": None, "camera_check_px": None,
-           "mirrored_half": None}
+           "mirrored_half": None, "stage_s": None}
     if outcome != "body":
         return row
     report, wireframe = fitted(folder)
@@ -402,7 +403,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
                           "wheelbase": sizes["wheelbase_mm"]},
                mirrored_half=bool(cp[:, 0].max() < MIRRORED_MM < -cp[:, 0].min()),
                fallback=report["fit_fallback"],
-               camera_check_px=camera_check_px(report, photo.meta["keypoints"]))
+               camera_check_px=camera_check_px(report, photo.meta["keypoints"]),
+               stage_s=report.get("timings_s"))
     if row["view_estimate_deg"] is not None:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
     for key in ("length", "width", "wheelbase"):
@@ -566,6 +568,9 @@ def summarise(rows: list[dict]) -> dict:
         "median_wheel_dv_pct": median_or_none(r["wheel_dv_pct"] for r in rows),
         "median_time_s": statistics.median(times) if times else None, "max_time_s": max(times, default=None),
         "median_cpu_s": statistics.median(cpu) if cpu else None, "max_cpu_s": max(cpu, default=None),
+        **{f"median_{k}_s": median_or_none((r["stage_s"] or {}).get(k) for r in rows) for k in ("fit", "surfaces")},
+        "median_fit_and_surfaces_s": median_or_none(r["stage_s"]["fit"] + r["stage_s"]["surfaces"] for r in rows
+                                                    if r["stage_s"] and "surfaces" in r["stage_s"]),
         "fallbacks": sum(bool(r["fallback"]) for r in rows),
         "mirrored_halves": sum(bool(r["mirrored_half"]) for r in rows),
         "max_camera_check_px": max((r["camera_check_px"] for r in rows if r["camera_check_px"] is not None),
@@ -604,6 +609,9 @@ def summary_table(s: dict) -> str:
              f"{fmt(s['max_time_s'], '.1f')} s |",
              f"| CPU time per photo (user + system), median / max | {fmt(s['median_cpu_s'], '.1f')} / "
              f"{fmt(s['max_cpu_s'], '.1f')} s |",
+             f"| fit + surfaces per photo (wall, the report's stage times), median | "
+             f"{fmt(s['median_fit_and_surfaces_s'], '.1f')} s (fit {fmt(s['median_fit_s'], '.1f')}, "
+             f"surfaces {fmt(s['median_surfaces_s'], '.1f')}) |",
              f"| stiffer fallback used | {s['fallbacks']} |",
              f"| fitted left half at x ≤ 0 (mirrored) | {s['mirrored_halves']} |"]
     return "\n".join(lines)

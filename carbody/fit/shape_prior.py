@@ -32,7 +32,7 @@ def prepared(library: Library, method: str, wheelbase_mm: float | None = None, f
     if wheelbase_mm is None:
         key = (method,)
         model = _cached(library, method, lambda: ShapeModel.from_shapes(
-            library.S, idx, groups=library.template_index, keep=real_widths(library)))
+            library.S, idx, groups=library.template_index, keep=real_widths(library)), store=True)
     else:
         key = ("sized", float(wheelbase_mm))
         model = _cached(library, key, lambda: sized_shape_model(library, wheelbase_mm))
@@ -72,17 +72,32 @@ def _joint_field(library: Library) -> np.ndarray:
         keep = int(np.searchsorted(np.cumsum(sv**2) / np.sum(sv**2), JOINT_FIELD_ENERGY)) + 1
         return field @ Wt[:keep].T
 
-    return _cached(library, ("joint field", JOINT_FIELD_AMPLITUDE), build)
+    return _cached(library, ("joint field", JOINT_FIELD_AMPLITUDE), build, store=True)
 
 
-def _cached(library: Library, what, build):
-    """``build()``, once per library (keyed by its S array) and ``what``."""
+def _cached(library: Library, what, build, store: bool = False):
+    """``build()``, once per library (keyed by its S array) and ``what``; with ``store``, once
+    per library and code version, on disk (:mod:`carbody.fit.prepared_store`)."""
     key = (id(library.S), library.S.shape, what)
     if key not in _PREPARED:
         if len(_PREPARED) > 64:
             _PREPARED.clear()
-        _PREPARED[key] = (library.S, build())
+        _PREPARED[key] = (library.S, _stored(library, what, build) if store else build())
     return _PREPARED[key][1]
+
+
+def _stored(library: Library, what, build):
+    """``build()``, read from the disk store when it holds this library's ``what``."""
+    from carbody.fit.prepared_store import read_stored, stored_path, write_stored
+
+    path = stored_path(library.digest, what)
+    value = None if path is None else read_stored(path, what, {"ShapeModel": ShapeModel,
+                                                                "DeformationField": DeformationField})
+    if value is None:
+        value = build()
+        if path is not None:
+            write_stored(path, what, value)
+    return value
 
 
 #: Which coordinates (x, y, z) of a car the shape model told the wheelbase knows in mm rather
@@ -125,7 +140,7 @@ def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
         return ShapeModel.from_shapes(S, load_topology().keypoint_point_indices, groups=library.template_index,
                                       keep=real_widths(library))
 
-    model = _cached(library, "sized", build)
+    model = _cached(library, "sized", build, store=True)
     unit = np.where(in_mm, NORMALISED_WHEELBASE / wheelbase_mm, 1.0)
     mean = model.mean * unit
     size = keypoint_spread(mean.reshape(-1, 3)[load_topology().keypoint_point_indices])
@@ -184,10 +199,8 @@ def _excess(values: np.ndarray, low: np.ndarray, high: np.ndarray) -> float:
 
 def prepared_field(library: Library) -> DeformationField:
     """The photo-matching deformation field around the library's mean model, built once."""
-    key = (id(library.S), library.S.shape, "field")
-    if key not in _PREPARED:
-        _PREPARED[key] = (library.S, DeformationField.around(library_mean(library), load_topology()))
-    return _PREPARED[key][1]
+    return _cached(library, "field", lambda: DeformationField.around(library_mean(library), load_topology()),
+                   store=True)
 
 
 def library_mean(library: Library) -> np.ndarray:

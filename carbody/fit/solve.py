@@ -376,11 +376,20 @@ def _feasible_start(A: np.ndarray, b: np.ndarray, P: np.ndarray) -> np.ndarray:
 def projection_rows(slots: list[KeypointSlot], view: View) -> np.ndarray:
     """(2k, 35, 3) float: row 2i (2i+1) maps the 35 keypoints to u (v, down) of slot i, scale 1."""
     rot = view_rotation(view)
-    kp = np.array([s.keypoint_id - 1 for s in slots])
-    sign = np.array([s.sign for s in slots])
-    M = np.zeros((2 * len(slots), 35, 3))
-    M[0::2][np.arange(len(slots)), kp] = rot[1] * sign
-    M[1::2][np.arange(len(slots)), kp] = -rot[2] * sign
+    kp, sign = _slot_arrays(slots)
+    return _rows(kp, rot[1] * sign, -rot[2] * sign)
+
+
+def _slot_arrays(slots: list[KeypointSlot]) -> tuple[np.ndarray, np.ndarray]:
+    """((k,) int keypoint row of each slot (its id − 1), (k, 3) float their signs)."""
+    return np.array([s.keypoint_id - 1 for s in slots]), np.array([s.sign for s in slots])
+
+
+def _rows(kp: np.ndarray, u_rows: np.ndarray, v_rows: np.ndarray) -> np.ndarray:
+    """(2k, 35, 3) float, zero but row 2i (2i+1) at keypoint kp[i]: u_rows[i] (v_rows[i])."""
+    M = np.zeros((2 * len(kp), 35, 3))
+    M[0::2][np.arange(len(kp)), kp] = u_rows
+    M[1::2][np.arange(len(kp)), kp] = v_rows
     return M
 
 
@@ -392,18 +401,12 @@ def camera_rows(slots: list[KeypointSlot], view: View, keypoints: np.ndarray | N
     Returns:
         (M (2k, 35, 3) float, const (2k,) float).
     """
-    M = projection_rows(slots, view)
-    const = np.zeros(len(M))
     if view.distance is None:
-        return M, const
-    sign = np.array([s.sign for s in slots])
-    kp = np.array([s.keypoint_id - 1 for s in slots])
-    grad, offset = point_camera(np.array([keypoints[s.keypoint_id - 1] * s.sign for s in slots]), view)
-    for axis in (0, 1):
-        M[axis::2] = 0.0
-        M[axis::2][np.arange(len(slots)), kp] = grad[:, axis] * sign
-        const[axis::2] = offset[:, axis]
-    return M, const
+        M = projection_rows(slots, view)
+        return M, np.zeros(len(M))
+    kp, sign = _slot_arrays(slots)
+    grad, offset = point_camera(keypoints[kp] * sign, view)
+    return _rows(kp, grad[:, 0] * sign, grad[:, 1] * sign), offset.ravel()
 
 
 def point_camera(points: np.ndarray, view: View) -> tuple[np.ndarray, np.ndarray]:
@@ -712,9 +715,15 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     ABV = AB @ V
     y1, y2 = ABV.T @ b, ams @ ABV  # (q,), (T, q)
 
-    def coeffs(g):  # g: (T, n) -> (T, n, q)
+    def coeffs(g):  # g: (T, n) -> (T, n, q): g·(y1 − g·y2) / (g²·e + λ), in place (the search's bulk)
         g = g[..., None]
-        return g * (y1 - g * y2[:, None]) / (g * g * e + lam)
+        c = g * y2[:, None]
+        np.subtract(y1, c, out=c)
+        c *= g
+        d = g * g * e
+        d += lam
+        c /= d
+        return c
 
     # ABV's columns are orthogonal with squared norms e, so the cost needs only q-vectors:
     # ‖g·(am + ABV·c) − b‖² = g²(am·am + 2 y2·c + Σ e c²) − 2g(am·b + y1·c) + b·b.
