@@ -116,8 +116,9 @@ def refine(scorer: Scorer, start: Hypothesis, free: tuple[str, ...], cheap: bool
     "elevation", "perspective") with the marks ``start`` explains (a mark the view stops seeing
     is left out and charged), then scored afresh there, misplaced marks looked for again; the
     better of that and ``start`` scored alike."""
+    from scipy.optimize import minimize
+
     from carbody.errors import AngleError, FitError
-    from carbody.fit.nelder_mead import nelder_mead
 
     policy = scorer.policy
     view0 = start.view
@@ -151,8 +152,9 @@ def refine(scorer: Scorer, start: Hypothesis, free: tuple[str, ...], cheap: bool
         x = x0[mask]
         steps = np.array(SIMPLEX_STEPS)[mask]
         simplex = np.vstack([x] + [x + steps[i] * np.eye(len(x))[i] for i in range(len(x))])
-        found = nelder_mead(objective, simplex, xatol=tolerance, fatol=1e-2, maxfev=evaluations)
-        refined = scorer.hypothesis(view_at(found), cheap=cheap)
+        found = minimize(objective, x, method="Nelder-Mead",
+                         options={"initial_simplex": simplex, "xatol": tolerance, "fatol": 1e-2, "maxfev": evaluations})
+        refined = scorer.hypothesis(view_at(found.x), cheap=cheap)
     else:
         refined = None
     again = start if cheap else scorer.hypothesis(start.view, cheap=False)
