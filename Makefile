@@ -12,12 +12,16 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# FreeCAD 0.20 (freecadcmd) for the workbench tests and as an independent STEP reader;
+# FreeCAD 0.20 (freecadcmd) for the workbench tests and as an independent STEP reader, Xvfb for
+# its GUI's test;
 # Chromium and its WebDriver for the annotation page's browser test (Selenium drives it).
 system-deps:
 	@command -v freecadcmd >/dev/null 2>&1 || { \
 	  echo "installing freecad-python3 (Debian) ..."; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq freecad-python3 >/dev/null; }
+	@command -v xvfb-run >/dev/null 2>&1 || { \
+	  echo "installing xvfb (Debian) ..."; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq xvfb xauth >/dev/null; }
 	@{ command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; } || { \
 	  echo "installing chromium and chromium-driver (Debian) ..."; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; }

@@ -16,7 +16,10 @@ keypoint, the one the page asks for:
 - a keypoint the hand marks lack (the annotator could not see it or was unsure): **H**, hidden.
 
 Every action counts one, as an accepted ghost counts one key press. The user looks at each
-update: the next action waits for the full fit (the page's second update).
+update: the next action waits for the full fit (the page's second update). When the page says
+the fit has settled, the user stops, as the page tells a real user they can (``--to-the-end``:
+the user goes on until nothing is asked, the rule before; accepting every ghost then pulls the
+car toward its own guess).
 
 Definitions:
 
@@ -28,19 +31,33 @@ Definitions:
   fit shows) within τ2, where τ3, τ2 are the mean over ``--draws`` (6) re-markings of the hand
   marks with ``--accept`` of isotropic click noise (RMS radius) of the same distances.
 - **Same at**: the first action count after which the fit is the same and stays the same to
-  the end; **settled at**: the first action count at which the page says the fit has settled
+  the user's last action; **first fit at**: the action that placed the fifth mark (the page fits from there
+  on); **settled at**: the first action count at which the page says the fit has settled
   (every keypoint still asked predicted within 1 % of the car's length), with the fit's
   distances there.
+- **Oracle** (``--oracle``): how many of the hand marks the best order needs, found greedily:
+  the five hand marks farthest apart in the photo, then each time the hand mark whose addition
+  brings the full fit nearest the hand fit (distances over τ3 plus over τ2), until the fit is
+  the same. Even a page that never asked for what the annotator left out would need about
+  that many actions.
+- **Facing** (``--facing``): on every real photo, the keypoints the full fit of its hand marks
+  shows on the photo, by how squarely they face the camera
+  (:func:`carbody.annotate.guide.facing_cosines`), and the share the annotator marked.
 - **Latency**: wall-clock from sending an edit to having its answer parsed (the update the page
   draws; the page's own drawing adds a few ms), for edits with five marks or more (a fit). Two
   runs: *paused* (the guided sessions above: the worker idle when the click comes) and *brisk*
   (``--brisk N`` clicks of the example in the page's order, each sent as soon as the last
-  answer came: the worker still fitting the click before). The full fit's time is from the
+  answer came: the worker still fitting the click before). Clicks and accepts (a quick fit
+  each) apart from H presses (answered with the fit there is). The full fit's time is from the
   edit to its landing. The quick fit's *processor time* (its thread's) is what the update costs
-  on an idle machine: a busy one stretches the wall clock, not that.
+  on an idle machine: a busy one stretches the wall clock, not that; the server's processor time
+  per click adds the page's state and its JSON to it. How far the quick fit's
+  keypoints (ghosts and reprojected marks) lie from the full fit's that replaces it, median
+  over the keypoints, per edit.
 
     python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
                                         [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
+                                        [--oracle] [--facing] [--no-guided] [--to-the-end]
 
 Real photos are read where they are (``--data``, default ``../shared/realphotos``); a photo or
 folder that is missing is skipped with a note. Run it niced on a shared machine: the load
@@ -78,6 +95,7 @@ class Client:
             "Content-Type": "application/json", "X-Carbody-Token": self.token})
         with urllib.request.urlopen(req, timeout=60) as r:
             raw = r.read()
+            self.server_cpu_ms = float(r.headers.get("X-Carbody-CPU-ms") or "nan")
         return json.loads(raw) if raw else None
 
     def state(self) -> dict:
@@ -152,7 +170,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
         try:
             ref = Reference(hand, session.image_size, session.prior, args.accept, args.draws)
             state = client.state()
-            actions, rows, latencies, refined_s, quick_cpu = 0, [], [], [], []
+            actions, rows, latencies, refined_s, quick_cpu, quick_off, server_cpu = 0, [], [], [], [], [], []
             guess = state["view"]["azimuth_deg"]
             picked = None
             if angular(guess, ref.fit.view.azimuth) > 30.0:
@@ -160,7 +178,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
                 state, _ = client.edit(op="view", azimuth=picked)
                 actions += 1
             accept_px = args.accept * ref.length_px
-            while state["ask"]:
+            while state["ask"] and not (state["settled"] and not args.to_the_end):
                 asked = state["ask"][0]
                 ghost = state["fit"]["ghosts"].get(asked) if state["fit"]["ok"] else None
                 if asked not in hand:
@@ -174,11 +192,14 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
                 actions += 1
                 fitted = state["fit"]["ok"]
                 if fitted:
-                    latencies.append(ms)
-                    quick_cpu.append(state["fit"]["cpu_seconds"] * 1000.0)
+                    latencies.append((op, ms))
+                    if op != "hide":  # (an H press is answered without a fit)
+                        quick_cpu.append(state["fit"]["cpu_seconds"] * 1000.0)
+                        server_cpu.append(client.server_cpu_ms)
                     if not state["refined"]:
                         landed = client.refined(state["revision"])
                         if landed is not None:
+                            quick_off.append(ghosts_apart(state["fit"], landed["fit"]))
                             state = landed
                             refined_s.append(time.perf_counter() - start)
                 marks = {n: tuple(uv) for n, uv in state["marks"].items()}
@@ -202,14 +223,26 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
             break
         same_at = rows[i]["action"]
     settled = next((r for r in rows if r["settled"]), None)
+    first_fit = next((r["action"] for r in rows if r["marks"] >= live_fit.MIN_MARKS), None)
     return {"photo": name, "hand": len(hand), "view_guess_deg": guess, "view_fit_deg": float(ref.fit.view.azimuth),
             "view_picked_deg": picked, "car_length_px": ref.length_px, "tau3_mm": ref.tau3, "tau2_px": ref.tau2,
             "same_at": same_at, "first_same_at": next((r["action"] for r in rows if r["same"]), None),
-            "settled_at": settled and settled["action"],
+            "settled_at": settled and settled["action"], "first_fit_at": first_fit,
             "settled_d3_mm": settled and settled["d3_mm"], "settled_d2_px": settled and settled["d2_px"],
             "actions_to_end": actions, "accepted": sum(r["op"] == "accept" for r in rows),
-            "hidden": sum(r["op"] == "hide" for r in rows), "latency_ms": latencies, "quick_fit_cpu_ms": quick_cpu, "refined_s": refined_s,
+            "stopped_settled": bool(rows and rows[-1]["settled"]), "same_when_stopped": bool(rows and rows[-1]["same"]),
+            "hidden": sum(r["op"] == "hide" for r in rows), "latency_ms": latencies, "quick_fit_cpu_ms": quick_cpu,
+            "quick_off_full_px": quick_off, "refined_s": refined_s, "server_cpu_ms": server_cpu,
             "rows": rows}
+
+
+def ghosts_apart(quick: dict, full: dict) -> float:
+    """Median distance (px) between the quick fit's and the full fit's predicted keypoints: the
+    ghosts and the reprojected marks both draw."""
+    a = {**{n: g["uv"] for n, g in quick["ghosts"].items()}, **{n: m["reprojected"] for n, m in quick["marks"].items()}}
+    b = {**{n: g["uv"] for n, g in full["ghosts"].items()}, **{n: m["reprojected"] for n, m in full["marks"].items()}}
+    common = [n for n in a if n in b]
+    return float(np.median([np.hypot(*np.subtract(a[n], b[n])) for n in common])) if common else float("nan")
 
 
 def brisk_latencies(clicks: int) -> list[float]:
@@ -242,6 +275,72 @@ def brisk_latencies(clicks: int) -> list[float]:
     return out
 
 
+def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
+    """The fewest hand marks a greedy order needs to reach the hand fit (module docstring)."""
+    from carbody.annotate import live_fit
+    from carbody.annotate.session import AnnotationSession
+    from carbody.fit import read_keypoints
+
+    hand = read_keypoints(marks_file).points
+    with tempfile.TemporaryDirectory() as tmp:
+        session = AnnotationSession(image, output=Path(tmp) / "marks.json", full_fits=False, warm_up=False)
+        session.wait_started(120)  # the classifier's prior, as the guided session has it
+        size, prior = session.image_size, session.prior
+        session.close()
+    ref = Reference(hand, size, prior, args.accept, args.draws)
+    names = list(hand)
+    uv = np.array([hand[n] for n in names])
+    order = [names[int(np.argmax(np.linalg.norm(uv - uv.mean(axis=0), axis=1)))]]
+    while len(order) < live_fit.MIN_MARKS:
+        near = np.min(np.linalg.norm(uv[:, None] - np.array([hand[n] for n in order])[None], axis=2), axis=1)
+        order.append(names[int(np.argmax(near))])
+
+    def distances(chosen):
+        return ref.distances(live_fit.fit_marks({n: hand[n] for n in chosen}, size, prior, quick=False).fit)
+
+    d3, d2 = distances(order)
+    while not (d3 <= ref.tau3 and d2 <= ref.tau2) and len(order) < len(names):
+        tried = [(distances(order + [n]), n) for n in names if n not in order]
+        (d3, d2), best = min(tried, key=lambda t: t[0][0] / ref.tau3 + t[0][1] / ref.tau2)
+        order.append(best)
+        if args.verbose:
+            print(f"  oracle {name} {len(order):2d} {best:28s} 3D {d3:6.1f} mm  photo {d2:5.1f} px", flush=True)
+    return {"photo": name, "hand": len(hand), "marks": len(order), "order": order,
+            "same": bool(d3 <= ref.tau3 and d2 <= ref.tau2), "tau3_mm": ref.tau3, "tau2_px": ref.tau2}
+
+
+#: Bins of the facing cosine (:func:`facing_rates`).
+FACING_BINS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0)
+
+
+def facing_rates(data: Path) -> list[dict]:
+    """On every real photo in ``data``: the keypoints the full fit of its hand marks shows on the
+    photo, binned by how squarely they face the camera, and the share its annotator marked."""
+    from carbody.annotate import guide, live_fit
+    from carbody.fit import read_keypoints
+
+    rows = []
+    for marks_file in sorted((data / "keypoints").glob("cps_*.json")):
+        ann = read_keypoints(marks_file)
+        fit = live_fit.fit_marks(ann.points, ann.image_size, None, quick=False).fit
+        if fit is None:
+            continue
+        points = live_fit.keypoint_positions(fit)
+        where = dict(zip(points, fit.project_points(np.array(list(points.values())))))
+        cos = guide.facing_cosines(fit.view, fit.wireframe.control_points / fit.mm_per_unit)
+        w, h = ann.image_size
+        for name in live_fit.visible_names(fit):
+            u, v = where[name]
+            if 0 <= u <= w and 0 <= v <= h:
+                rows.append({"photo": marks_file.stem, "name": name, "cos": cos[name], "marked": name in ann.points})
+    out = []
+    for low, high in zip(FACING_BINS[:-1], FACING_BINS[1:]):
+        group = [r for r in rows if low <= r["cos"] < high or (high == FACING_BINS[-1] and r["cos"] >= high)]
+        if group:
+            out.append({"cos": [low, high], "shown": len(group), "marked": float(np.mean([r["marked"] for r in group]))})
+    return out
+
+
 def percentiles(values: list[float]) -> str:
     if not values:
         return "—"
@@ -261,6 +360,12 @@ def main(argv=None) -> int:
     parser.add_argument("--brisk", type=int, default=20, help="clicks of the brisk latency run (0: none)")
     parser.add_argument("--json", type=Path, default=None, help="write every figure here")
     parser.add_argument("--verbose", "-v", action="store_true", help="print every action")
+    parser.add_argument("--oracle", action="store_true", help="also the fewest hand marks a greedy order needs")
+    parser.add_argument("--facing", action="store_true",
+                        help="also the annotators' share of marked keypoints by how squarely they face the camera")
+    parser.add_argument("--no-guided", action="store_true", help="skip the guided sessions and the latencies")
+    parser.add_argument("--to-the-end", action="store_true",
+                        help="the simulated user goes on past the page's 'settled' until nothing is asked")
     args = parser.parse_args(argv)
 
     load = os.getloadavg()
@@ -274,37 +379,67 @@ def main(argv=None) -> int:
                 cases.append((name, image, marks))
             else:
                 print(f"note: {name} is not in {args.data}: skipped")
-    results = []
-    for name, image, marks in cases:
+    results, oracles, facing = [], [], []
+    for name, image, marks in cases if not args.no_guided else []:
         started = time.perf_counter()
         results.append(guided_session(name, image, marks, args))
         results[-1]["wall_s"] = time.perf_counter() - started
-    brisk = brisk_latencies(args.brisk) if args.brisk else []
+    brisk = brisk_latencies(args.brisk) if args.brisk and not args.no_guided else []
+    if args.oracle:
+        oracles = [oracle(name, image, marks, args) for name, image, marks in cases]
+    if args.facing and args.data.is_dir():
+        facing = facing_rates(args.data)
     load_end = os.getloadavg()
 
     print(f"\nmachine: {os.cpu_count()} cores; load average {load[0]:.1f} at the start, {load_end[0]:.1f} at the end")
-    print("\n| photo | hand marks | view guessed → fitted (picked) | same fit at | first same | settled at (3D mm / photo px there) "
-          "| actions to the end (accepted, hidden) | τ3 mm / τ2 px |")
-    print("|---|---|---|---|---|---|---|---|")
+    if results:
+        print("\n| photo | hand marks | view guessed → fitted (picked) | first fit at | same fit at | first same "
+              "| settled at (3D mm / photo px there) | actions in all (accepted, hidden) | the same fit then | τ3 mm / τ2 px |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
     for r in results:
         same = "never" if r["same_at"] is None else f"{r['same_at']} ({r['same_at'] / r['hand']:.0%})"
         settled = "never" if r["settled_at"] is None else \
             f"{r['settled_at']} ({r['settled_d3_mm']:.0f} / {r['settled_d2_px']:.1f})"
         picked = "" if r["view_picked_deg"] is None else f" (picked {r['view_picked_deg']:.0f}°)"
-        print(f"| {r['photo']} | {r['hand']} | {r['view_guess_deg']:.0f}° → {r['view_fit_deg']:.0f}°{picked} | {same} | "
-              f"{r['first_same_at']} | {settled} | {r['actions_to_end']} ({r['accepted']}, {r['hidden']}) | "
-              f"{r['tau3_mm']:.0f} / {r['tau2_px']:.1f} |")
-    paused = [ms for r in results for ms in r["latency_ms"]]
+        print(f"| {r['photo']} | {r['hand']} | {r['view_guess_deg']:.0f}° → {r['view_fit_deg']:.0f}°{picked} | "
+              f"{r['first_fit_at']} | {same} | {r['first_same_at']} | {settled} | "
+              f"{r['actions_to_end']} ({r['accepted']}, {r['hidden']}){' settled' if r['stopped_settled'] else ''} | "
+              f"{'yes' if r['same_when_stopped'] else 'no'} | {r['tau3_mm']:.0f} / {r['tau2_px']:.1f} |")
+    if oracles:
+        print("\n| photo | hand marks | the greedy order's marks to the same fit | τ3 mm / τ2 px |")
+        print("|---|---|---|---|")
+        for o in oracles:
+            marks = f"{o['marks']} ({o['marks'] / o['hand']:.0%})" if o["same"] else f"not within {o['marks']}"
+            print(f"| {o['photo']} | {o['hand']} | {marks} | {o['tau3_mm']:.0f} / {o['tau2_px']:.1f} |")
+    if facing:
+        print("\n| facing cosine | keypoints shown on the photo | share marked by the annotator |")
+        print("|---|---|---|")
+        for f in facing:
+            print(f"| {f['cos'][0]:.1f}–{f['cos'][1]:.1f} | {f['shown']} | {f['marked']:.0%} |")
+    if not results:
+        if args.json:
+            args.json.write_text(json.dumps({"load_start": load, "load_end": load_end, "oracle": oracles,
+                                             "facing": facing}, indent=1))
+        return 0
+    paused = [ms for r in results for op, ms in r["latency_ms"] if op != "hide"]
+    hides = [ms for r in results for op, ms in r["latency_ms"] if op == "hide"]
     refined = [s for r in results for s in r["refined_s"]]
-    print(f"\nlatency, paused clicks: {percentiles(paused)}")
+    print(f"\nlatency, paused clicks and accepts (a quick fit): {percentiles(paused)}")
+    print(f"latency, H presses (no fit): {percentiles(hides)}")
     print(f"latency, brisk clicks:  {percentiles(brisk)}")
     cpu = [ms for r in results for ms in r["quick_fit_cpu_ms"]]
     print(f"the quick fit's processor time, paused clicks: {percentiles(cpu)}")
+    server = [ms for r in results for ms in r["server_cpu_ms"]]
+    print(f"the server's processor time per click (the fit, the state, the JSON): {percentiles(server)}")
     if refined:
         print(f"full fit landed after: median {np.median(refined):.2f} s, max {max(refined):.2f} s")
+    off = [v for r in results for v in r["quick_off_full_px"] if np.isfinite(v)]
+    if off:
+        print(f"the quick fit's keypoints off the full fit's: median {np.median(off):.1f} px, "
+              f"p90 {np.percentile(off, 90):.1f} px (n = {len(off)})")
     if args.json:
         args.json.write_text(json.dumps({"load_start": load, "load_end": load_end, "cases": results,
-                                         "brisk_latency_ms": brisk}, indent=1))
+                                         "brisk_latency_ms": brisk, "oracle": oracles, "facing": facing}, indent=1))
     return 0
 
 

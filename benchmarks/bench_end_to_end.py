@@ -13,7 +13,7 @@ sewn shell) or the run stopped with an error line. The classifier was trained on
 some templates (not these photos): rows are split by whether it ever saw the car.
 
 Run: python benchmarks/bench_end_to_end.py [--quick] [--view-known] [--loose-fields] [--no-blend] [--workers 2]
-    [--json out.json]
+    [--[no-]wheels] [--json out.json]
 """
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def set_up_worker(loose: bool, blend: bool) -> None:
 
 
 def run_template(args) -> list[dict]:
-    t, views, view_known = args
+    t, views, view_known, wheels = args
     import torch
 
     torch.set_num_threads(1)
@@ -99,7 +99,8 @@ def run_template(args) -> list[dict]:
         row = {"template": name, "view": view, "keypoints": len(marks), "error": None}
         start = time.perf_counter()
         try:
-            result = reconstruct(image, marks, view=view if view_known else None, library=loo, name=name)
+            result = reconstruct(image, marks, view=view if view_known else None, library=loo, name=name,
+                                 **({} if wheels is None else {"wheels": wheels}))
         except CarbodyError as exc:
             row["error"] = str(exc)
             rows.append(row)
@@ -203,6 +204,8 @@ def main(argv=None) -> int:
                     help="the fit's fields move each curve's inner poles on their own (not with its ends)")
     ap.add_argument("--no-blend", action="store_true",
                     help="a stiffer refit is not blended back toward the fit")
+    ap.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=None,
+                    help="find the wheels' hubs in the picture and fit them (default: as reconstruct's default)")
     args = ap.parse_args(argv)
     from carbody.library import load_library
     from carbody.view.predict import load_classifier
@@ -215,13 +218,14 @@ def main(argv=None) -> int:
     seen = set(load_library().template_names) - never_seen
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=set_up_worker, initargs=(args.loose_fields, not args.no_blend)) as pool:
-        rows = [r for part in pool.map(run_template, [(t, views, args.view_known) for t in templates]) for r in part]
+        rows = [r for part in pool.map(run_template, [(t, views, args.view_known, args.wheels) for t in templates]) for r in part]
     print(f"# End to end, each template left out of the library: {len(templates)} cars x {len(views)} views, "
           f"street photos ({SIZE[0]} x {SIZE[1]} px, camera {CAMERA_DISTANCE_MM / 1000:g} m away, "
           f"{ELEVATION_DEG:g}° up), {NOISE_PX:g} px marks, view "
           f"{'told' if args.view_known else 'by the classifier'}, distance found, wheelbase not told"
           f"{'; fields moving inner poles on their own' if args.loose_fields else ''}"
-          f"{'; stiffer refits not blended back' if args.no_blend else ''}; "
+          f"{'; stiffer refits not blended back' if args.no_blend else ''}"
+          f"{'' if args.wheels is None else '; wheels ' + ('on' if args.wheels else 'off')}; "
           f"{os.cpu_count()} cores, {args.workers} workers ({time.perf_counter() - start:.0f} s)\n")
     print(summary(rows, seen))
     print("\nBy view (all cars):\n")

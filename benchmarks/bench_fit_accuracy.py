@@ -29,7 +29,6 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from carbody.fit.shape_prior import WHEELBASE_DISAGREEMENT
 
 ANGLES = tuple(range(0, 181, 15))
 IMAGE_WIDTH = 1000
@@ -219,21 +218,18 @@ def run_template(args) -> list[dict]:
                                 focal_px=focal if known_focal else None, robust=reject,
                                 **kw, **kw_camera)
             dt = time.perf_counter() - t0
-            estimate = proportions = size_note = None
+            estimate = by_mix = spread = None
             if not refine and not offset and lam is None and deform == (method != "paper") and wb_told:
-                # the wheelbase the fit uses when none is given (the mix's own; told one, the
-                # shape prior is sized by it, so this is a fit of its own)
+                # the wheelbase the fit uses when none is given (the proportions' for the
+                # Gaussian-prior methods, the mix's own for the paper's; told one, the shape prior
+                # is sized by it, so this is a fit of its own)
                 try:
                     alone = fit_wireframe(kps, View(azimuth % 360, given_elevation), loo, image_size=size,
                                           method=method, refine=False, deform=False, principal_point=principal,
                                           focal_px=focal if known_focal else None, **kw_camera)
                     estimate = 100.0 * (alone.wheelbase_mm / wb - 1.0)
-                    # the second opinion its proportions give, and whether the fit notes the two disagree
-                    by_proportions = alone.wheelbase_by_proportions_mm
-                    proportions = 100.0 * (by_proportions / wb - 1.0)
-                    size_note = (alone.wheelbase_from == "library mix" and max(
-                        alone.wheelbase_mm / by_proportions, by_proportions / alone.wheelbase_mm)
-                        > 1.0 + WHEELBASE_DISAGREEMENT)
+                    by_mix = 100.0 * (alone.wheelbase_by_mix_mm / wb - 1.0)
+                    spread = None if alone.size is None else 100.0 * alone.size.spread
                 except FitError:  # a told distance read at a wheelbase that puts the camera in the car
                     estimate = float("nan")
             at_truth = wb / res.wheelbase_mm  # 1 when told; else the fit's own size read at the true one
@@ -256,7 +252,7 @@ def run_template(args) -> list[dict]:
                          "refined_azimuth": res.view.azimuth, "refined_elevation": res.view.elevation,
                          # the wheelbase the fit uses when none is given, vs the truth
                          "wheelbase_estimate_pct": estimate,
-                         "wheelbase_by_proportions_pct": proportions, "size_note": size_note,
+                         "wheelbase_by_mix_pct": by_mix, "wheelbase_spread_pct": spread,
                          "residual_px": float(res.solution.residual_px.mean()),
                          "moved": moved, "rejected": sorted(res.diagnostics.rejected),
                          "swapped": sorted(res.diagnostics.swapped or ()),
@@ -525,27 +521,26 @@ def summarise(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
-def size_notes(rows: list[dict], distance_told: bool) -> str:
-    """The wheelbase the fitted car's proportions give (``FitResult.wheelbase_by_proportions_mm``)
-    against the mix's own, and how often the note that the size is uncertain (the two more than
-    WHEELBASE_DISAGREEMENT apart) comes up, and when the mix's is right or far off."""
-    out = ["", "Beside it, the wheelbase the fitted car's width and height in wheelbases give (the fit's "
-           "second opinion), and the note that the car's size is uncertain (the two more than "
-           f"{100 * WHEELBASE_DISAGREEMENT:.0f} % apart; with the mix's wheelbase only), view known:", "",
-           "| method | by proportions: mean abs. | median abs. | max abs. | note said | "
-           "mix's > 10 % off: noted | mix's within 5 %: noted |", "|---|---|---|---|---|---|---|"]
+def size_table(rows: list[dict], distance_told: bool) -> str:
+    """The size the fit gives when no wheelbase is told (``FitResult.wheelbase_mm``: from the
+    proportions, :mod:`carbody.fit.size`) against the library mix's own
+    (``wheelbase_by_mix_mm``), and how often the truth lies within one and two of the
+    estimate's own spreads."""
+    out = ["", "The proportions' wheelbase against the mix's own, and the proportions' spread "
+           "against their error (view known):", "",
+           "| method | proportions: mean abs. | median abs. | max abs. | mix's own: mean abs. | median abs. "
+           "| max abs. | within 1 / 2 spreads | median spread |", "|---|---|---|---|---|---|---|---|---|"]
     for method in dict.fromkeys(r["method"] for r in rows):
-        rs = [r for r in rows if r["method"] == method and r.get("wheelbase_by_proportions_pct") is not None
+        rs = [r for r in rows if r["method"] == method and r.get("wheelbase_spread_pct") is not None
               and not np.isnan(r["wheelbase_estimate_pct"]) and r["deform"] == (method != "paper")
               and r.get("camera") == ("told" if distance_told else None)]
         if not rs:
             continue
-        p = np.abs([r["wheelbase_by_proportions_pct"] for r in rs])
-        far = [r for r in rs if abs(r["wheelbase_estimate_pct"]) > 10]
-        near = [r for r in rs if abs(r["wheelbase_estimate_pct"]) < 5]
-        out.append(f"| {method} | {p.mean():.1f} % | {np.median(p):.1f} % | {p.max():.1f} % "
-                   f"| {sum(r['size_note'] for r in rs)} of {len(rs)} | {sum(r['size_note'] for r in far)} of {len(far)} "
-                   f"| {sum(r['size_note'] for r in near)} of {len(near)} |")
+        e, m = np.abs([r["wheelbase_estimate_pct"] for r in rs]), np.abs([r["wheelbase_by_mix_pct"] for r in rs])
+        spread = np.array([r["wheelbase_spread_pct"] for r in rs])
+        out.append(f"| {method} | {e.mean():.1f} % | {np.median(e):.1f} % | {e.max():.1f} % | {m.mean():.1f} % "
+                   f"| {np.median(m):.1f} % | {m.max():.1f} % | {np.mean(e <= spread):.0%} / {np.mean(e <= 2 * spread):.0%} "
+                   f"| {np.median(spread):.1f} % |")
     return "\n".join(out)
 
 
@@ -850,8 +845,8 @@ def main(argv=None) -> int:
         d = np.array([np.inf if r["refined_distance_mm"] is None else r["refined_distance_mm"] for r in found])
         print(f"\nCamera distance found by the fit: median {np.median(d):.0f} mm for {args.distance:g} mm; "
               f"within 10 % in {int(np.sum(np.abs(d / args.distance - 1) < 0.1))} of {len(d)} cases.")
-    print("\nWheelbase the fit estimates when none is given (the mix's own; told the camera distance, "
-          "from the perspective), error vs the truth, view known:\n")
+    print("\nWheelbase the fit estimates when none is given (the proportions'; the paper's solve: the mix's "
+          "own; told the camera distance, from the perspective), error vs the truth, view known:\n")
     print("| method | mean abs. | median abs. | max abs. |")
     print("|---|---|---|---|")
     for method in dict.fromkeys(r["method"] for r in rows):
@@ -863,7 +858,7 @@ def main(argv=None) -> int:
             failed = f" ({int(np.sum(np.isnan(e)))} refused: camera inside the car)" if np.isnan(e).any() else ""
             e = e[~np.isnan(e)]
             print(f"| {method} | {e.mean():.1f} % | {np.median(e):.1f} % | {e.max():.1f} %{failed} |")
-    print(size_notes(rows, args.distance is not None))
+    print(size_table(rows, args.distance is not None))
     print(per_car(rows))
     print(calibration(rows))
     print(length_reference(rows))

@@ -14,7 +14,7 @@ beside its folder (``OUT/<photo>.run.json``; its output in ``OUT/<photo>.stdout.
 
     python benchmarks/bench_real_photos.py [--photos N | NAME ...] [--workers 1] [--out DIR]
                                            [--data DIR] [--json FILE] [--reuse] [--blas-threads N]
-                                           [--timeout S] [--no-sheet] [--outline]
+                                           [--timeout S] [--no-sheet] [--outline] [--[no-]wheels]
 
 Outcomes: ``body`` (exit 0 and a ``body.step``), ``refused`` (exit 2 with one line
 ``carbody reconstruct: error: ...`` and no traceback: the table shows the line), ``error``
@@ -55,10 +55,13 @@ Definitions (per photo):
   puts several wheels in one annotation); its centre is the polygon's centroid. Annotated
   wheels are assigned one-to-one to projected centres minimising the total distance (the
   nearest, without two wheels taking the same centre); the photo's figure is the mean distance
-  over its annotated wheels, % of S.
+  over its annotated wheels, % of S. Beside it, the mean signed vertical offset (annotated −
+  projected, + down: the projected centre above the annotated one). The polygon is the visible
+  tyre, whose top the fender hides, so its centroid lies somewhat below the hub.
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); medians over the photos where a figure is defined (the count
-  in brackets); wall time median and max.
+  in brackets); wall time median and max; the fit and surface stages' wall times
+  (``report["timings_s"]``: in a fresh process they include the imports each stage makes).
 - **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``
   not null).
 - **Camera check**: the marks kept by the fit, reprojected here from ``keypoints_mm`` with the
@@ -386,7 +389,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "view_found_deg": None, "view_diff_deg": None, "view_source": None, "residual_px_mean": None,
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
            "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
-           "wheel_dist_px": None, "fallback": None, "camera_check_px": None, "mirrored_half": None}
+           "wheel_dist_px": None, "wheel_dv_pct": None, "fallback": None, "camera_check_px": None,
+           "mirrored_half": None, "stage_s": None}
     if outcome != "body":
         return row
     report, wireframe = fitted(folder)
@@ -399,22 +403,89 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
                           "wheelbase": sizes["wheelbase_mm"]},
                mirrored_half=bool(cp[:, 0].max() < MIRRORED_MM < -cp[:, 0].min()),
                fallback=report["fit_fallback"],
-               camera_check_px=camera_check_px(report, photo.meta["keypoints"]))
+               camera_check_px=camera_check_px(report, photo.meta["keypoints"]),
+               stage_s=report.get("timings_s"))
     if row["view_estimate_deg"] is not None:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
     for key in ("length", "width", "wheelbase"):
         row[f"{key}_err_pct"] = pct_error(row["fitted_mm"][key], published.get(key))
+    row["iou"], row["wheel_dist_px"], dv_px = how_it_sits(photo, camera, cp)
+    if row["wheel_dist_px"] is not None:
+        row["wheel_dist_pct"] = 100.0 * row["wheel_dist_px"] / size
+        row["wheel_dv_pct"] = 100.0 * dv_px / size
+    return row
+
+
+def how_it_sits(photo: Photo, camera: dict, control_points: np.ndarray) -> tuple[dict, float | None, float | None]:
+    """({region: IoU or None}, mean wheel-centre distance px, mean signed vertical offset px —
+    annotated below projected positive —; both None without annotated wheels) of a fitted car
+    projected with ``camera`` (the report's) against the photo's human polygons (module
+    docstring)."""
+    iou = {r: None for r, _ in REGION_PARTS}
     for region, part in REGION_PARTS:
         if part in photo.parts:
-            human, ours = part_union(photo, part), projected_region(camera, cp, region)
+            human, ours = part_union(photo, part), projected_region(camera, control_points, region)
             union = human.union(ours).area
-            row["iou"][region] = float(human.intersection(ours).area / union) if union > 0 else 0.0
+            iou[region] = float(human.intersection(ours).area / union) if union > 0 else 0.0
     wheels = annotated_wheel_centres(photo)
-    if len(wheels):
-        d = [m[2] for m in wheel_matches(wheels, projected_wheel_centres(camera, cp))]
-        row["wheel_dist_px"] = float(np.mean(d))
-        row["wheel_dist_pct"] = 100.0 * row["wheel_dist_px"] / size
-    return row
+    if not len(wheels):
+        return iou, None, None
+    projected = projected_wheel_centres(camera, control_points)
+    matches = wheel_matches(wheels, projected)
+    return (iou, float(np.mean([m[2] for m in matches])),
+            float(np.mean([wheels[i, 1] - projected[j, 1] for i, j, _ in matches])))
+
+
+def estimate_check(photos: list[Photo], rows: list[dict], out: Path) -> list[dict]:
+    """For each photo whose view was found more than ``VIEW_OK_DEG`` from the estimate: the car
+    fitted again with the estimate kept (``carbody fit --view EST --no-refine``, the elevation
+    found, ``--force``), and how each sits on the human polygons. The estimate is by eye
+    (±10°): where the view kept at it sits worse on what the people drew, the estimate is the
+    likelier one to be off."""
+    from carbody.wireframe import read_wireframe
+
+    checks = []
+    for photo, row in zip(photos, rows):
+        if row["outcome"] != "body" or row["view_diff_deg"] is None or row["view_diff_deg"] <= VIEW_OK_DEG:
+            continue
+        folder = out / f"{photo.name}.at_estimate"
+        folder.mkdir(exist_ok=True)
+        elevation = json.loads((out / photo.name / "report.json").read_text())["view"]["elevation_deg"]
+        cmd = [sys.executable, "-m", "carbody", "fit", str(photo.image), "-k", str(photo.marks),
+               "--view", f"{row['view_estimate_deg']:g}", "--elevation", f"{elevation:.2f}", "--no-refine",
+               "--force", "-q", "-o", str(folder / "wireframe.step"), "--report", str(folder / "report.json")]
+        proc = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+        if proc.returncode != 0:
+            checks.append({"photo": photo.name, "error": proc.stderr.strip().splitlines()[-1:]})
+            continue
+        report = json.loads((folder / "report.json").read_text())
+        iou, wheels, _ = how_it_sits(photo, report["camera"], read_wireframe(folder / "wireframe.step").control_points)
+        size = row["image_size_px"]
+        checks.append({"photo": photo.name, "estimate_deg": row["view_estimate_deg"],
+                       "found_deg": row["view_found_deg"], "found": {
+                           "residual_pct": row["residual_pct"], "iou": row["iou"],
+                           "wheel_dist_pct": row["wheel_dist_pct"]},
+                       "at_estimate": {"residual_pct": 100.0 * report["residual_px_mean"] / size, "iou": iou,
+                                       "wheel_dist_pct": None if wheels is None else 100.0 * wheels / size}})
+    return checks
+
+
+def estimate_table(checks: list[dict]) -> str:
+    """The views found off the estimate against the estimate kept (:func:`estimate_check`)."""
+    lines = ["| photo | view found / estimate ° | residual % found / at estimate | IoU windshield | IoU rear window "
+             "| IoU hood | wheel centres % |", "|---|---|---|---|---|---|---|"]
+    for c in checks:
+        if "error" in c:
+            lines.append(f"| {c['photo'].removeprefix('cps_')} | fit at the estimate failed: {' '.join(c['error'])} "
+                         "| | | | | |")
+            continue
+        f, e = c["found"], c["at_estimate"]
+        pair = lambda a, b, spec=".2f": f"{fmt(a, spec)} / {fmt(b, spec)}" if a is not None else ""  # noqa: E731
+        lines.append(f"| {c['photo'].removeprefix('cps_')} | {c['found_deg']:.0f} / {c['estimate_deg']:g} "
+                     f"| {pair(f['residual_pct'], e['residual_pct'], '.1f')} | "
+                     + " | ".join(pair(f["iou"][r], e["iou"][r]) for r, _ in REGION_PARTS)
+                     + f" | {pair(f['wheel_dist_pct'], e['wheel_dist_pct'], '.1f')} |")
+    return "\n".join(lines)
 
 
 # --- tables ----------------------------------------------------------------------------------
@@ -494,8 +565,12 @@ def summarise(rows: list[dict]) -> dict:
         **{f"iou_{k}_measured": sum(r["iou"][k] is not None for r in rows) for k, _ in REGION_PARTS},
         "median_wheel_dist_pct": median_or_none(r["wheel_dist_pct"] for r in rows),
         "wheel_dist_measured": sum(r["wheel_dist_pct"] is not None for r in rows),
+        "median_wheel_dv_pct": median_or_none(r["wheel_dv_pct"] for r in rows),
         "median_time_s": statistics.median(times) if times else None, "max_time_s": max(times, default=None),
         "median_cpu_s": statistics.median(cpu) if cpu else None, "max_cpu_s": max(cpu, default=None),
+        **{f"median_{k}_s": median_or_none((r["stage_s"] or {}).get(k) for r in rows) for k in ("fit", "surfaces")},
+        "median_fit_and_surfaces_s": median_or_none(r["stage_s"]["fit"] + r["stage_s"]["surfaces"] for r in rows
+                                                    if r["stage_s"] and "surfaces" in r["stage_s"]),
         "fallbacks": sum(bool(r["fallback"]) for r in rows),
         "mirrored_halves": sum(bool(r["mirrored_half"]) for r in rows),
         "max_camera_check_px": max((r["camera_check_px"] for r in rows if r["camera_check_px"] is not None),
@@ -528,10 +603,15 @@ def summary_table(s: dict) -> str:
              f"| median IoU hood ↔ hood | {with_n('hood')} |",
              f"| median wheel-centre distance, % of the car's image size | "
              f"{fmt(s['median_wheel_dist_pct'], '.1f') or '–'} (of {s['wheel_dist_measured']}) |",
+             f"| median signed vertical offset of those centres, annotated − projected (+: the projected "
+             f"centre above), % | {fmt(s['median_wheel_dv_pct'], '.1f', signed=True) or '–'} |",
              f"| time per photo (wall), median / max | {fmt(s['median_time_s'], '.1f')} / "
              f"{fmt(s['max_time_s'], '.1f')} s |",
              f"| CPU time per photo (user + system), median / max | {fmt(s['median_cpu_s'], '.1f')} / "
              f"{fmt(s['max_cpu_s'], '.1f')} s |",
+             f"| fit + surfaces per photo (wall, the report's stage times), median | "
+             f"{fmt(s['median_fit_and_surfaces_s'], '.1f')} s (fit {fmt(s['median_fit_s'], '.1f')}, "
+             f"surfaces {fmt(s['median_surfaces_s'], '.1f')}) |",
              f"| stiffer fallback used | {s['fallbacks']} |",
              f"| fitted left half at x ≤ 0 (mirrored) | {s['mirrored_halves']} |"]
     return "\n".join(lines)
@@ -691,6 +771,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-sheet", action="store_true", help="skip the contact sheet")
     ap.add_argument("--outline", action="store_true",
                     help="reconstruct with --outline: the car's outline in the photo fitted with the marks")
+    ap.add_argument("--check-estimates", action="store_true",
+                    help="refit each photo whose view was found more than 15° from the estimate with the "
+                         "estimate kept, and compare how the two sit on the human polygons")
+    ap.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=None,
+                    help="reconstruct with --wheels (or --no-wheels): the wheels' hubs found in the photo "
+                         "fitted with the marks (default: as reconstruct's default)")
     args = ap.parse_args(argv)
 
     if not (args.data / "parts.json").exists():
@@ -703,8 +789,9 @@ def main(argv: list[str] | None = None) -> int:
     def run_one(photo: Photo) -> dict:
         run = stored_run(photo, args.out) if args.reuse else None
         if run is None:
-            run = run_photo(photo, args.out, args.timeout, args.blas_threads,
-                            ("--outline",) if args.outline else ())
+            extra = ("--outline",) * args.outline + \
+                (() if args.wheels is None else ("--wheels",) if args.wheels else ("--no-wheels",))
+            run = run_photo(photo, args.out, args.timeout, args.blas_threads, extra)
             print(f"{photo.name}: exit {run['exit_code']} in {run['seconds']:.1f} s", file=sys.stderr, flush=True)
         return run
 
@@ -723,11 +810,17 @@ def main(argv: list[str] | None = None) -> int:
     if messages:
         print(messages + "\n")
     print(summary_table(summary))
+    checks = estimate_check(photos, rows, args.out) if args.check_estimates else None
+    if checks:
+        print("\nViews found more than 15° from the estimate, against the estimate kept (found / at the "
+              "estimate; the elevation found):\n")
+        print(estimate_table(checks))
     if sheet is not None:
         print(f"\ncontact sheet: {sheet}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"machine": machine, "rows": rows, "summary": summary,
+                                         "estimate_checks": checks,
                                          "contact_sheet": None if sheet is None else str(sheet)}, indent=1))
     return 0
 

@@ -51,6 +51,69 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", required=True, type=Path, help="the .FCStd file to write")
     p.add_argument("--freecadcmd", default="freecadcmd", help="FreeCAD's command-line program (default: freecadcmd)")
     p.set_defaults(func=run_freecad)
+    w = sub.add_parser("freecad-workbench", help="link the FreeCAD workbench into FreeCAD's Mod folder",
+                       description="Link the carbody workbench this carbody ships into FreeCAD's Mod "
+                                   "folder (as the link MOD/carbody). Through the link the workbench "
+                                   "finds this carbody's virtual environment, so its commands run this "
+                                   "carbody. Restart FreeCAD to see it.")
+    w.add_argument("--mod-dir", type=Path, default=None,
+                   help="FreeCAD's Mod folder (default: the one FreeCAD reads, asked of freecadcmd)")
+    w.add_argument("--freecadcmd", default="freecadcmd", help="FreeCAD's command-line program (default: freecadcmd)")
+    w.set_defaults(func=run_freecad_workbench)
+
+
+def freecad_mod_dir(freecadcmd: str = "freecadcmd") -> Path:
+    """The Mod folder FreeCAD reads the user's addons from (``getUserAppDataDir()/Mod``).
+
+    Raises:
+        FreeCADError: FreeCAD is not installed or does not say.
+    """
+    exe = _freecadcmd(freecadcmd)
+    with tempfile.TemporaryDirectory(prefix="carbody-fc-") as tmp:
+        script = Path(tmp) / "where.py"
+        script.write_text("import FreeCAD\nprint('CARBODY-DIR ' + FreeCAD.getUserAppDataDir())\n")
+        proc = subprocess.run([exe, str(script)], capture_output=True, text=True)
+    found = [line[len("CARBODY-DIR "):] for line in proc.stdout.splitlines() if line.startswith("CARBODY-DIR ")]
+    if not found:
+        raise FreeCADError("FreeCAD did not say where its Mod folder is: give it with --mod-dir")
+    return Path(found[0]) / "Mod"
+
+
+def link_workbench(mod_dir: Path) -> Path:
+    """Link the shipped workbench into ``mod_dir`` as ``carbody`` (made if missing; an earlier
+    link replaced); returns the link.
+
+    Raises:
+        FreeCADError: ``mod_dir/carbody`` is a folder or file of its own (left as it is), or the
+            link cannot be made.
+    """
+    link = Path(mod_dir) / "carbody"
+    target = WORKBENCH.resolve()
+    if link.exists() and not link.is_symlink():
+        raise FreeCADError(f"{link} is already there and is not a link: move it away first")
+    try:
+        link.parent.mkdir(parents=True, exist_ok=True)
+        if link.is_symlink():
+            link.unlink()
+        link.symlink_to(target, target_is_directory=True)
+    except OSError as exc:
+        raise FreeCADError(f"{link}: cannot link the workbench ({exc.strerror or exc})") from None
+    return link
+
+
+def run_freecad_workbench(args: argparse.Namespace) -> int:
+    mod_dir = args.mod_dir if args.mod_dir is not None else freecad_mod_dir(args.freecadcmd)
+    link = link_workbench(mod_dir)
+    print(f"linked {link} -> {WORKBENCH.resolve()}: restart FreeCAD and pick the carbody workbench")
+    return 0
+
+
+def _freecadcmd(name: str) -> str:
+    exe = name if os.path.isabs(name) else shutil.which(name)
+    if not exe or not os.path.isfile(exe):
+        raise FreeCADError(f"FreeCAD is not installed: {name!r} not found "
+                           "(Debian: apt-get install freecad-python3)")
+    return exe
 
 
 def run_freecad(args: argparse.Namespace) -> int:
@@ -60,10 +123,7 @@ def run_freecad(args: argparse.Namespace) -> int:
     inputs = {f"the folder's {name}": args.folder / name for name in ("wireframe.step", "body.step", "report.json")}
     check_not_inputs({"--output": args.output}, inputs)
     check_output_file(args.output, FREECAD)
-    exe = args.freecadcmd if os.path.isabs(args.freecadcmd) else shutil.which(args.freecadcmd)
-    if not exe or not os.path.isfile(exe):
-        raise FreeCADError(f"FreeCAD is not installed: {args.freecadcmd!r} not found "
-                           "(Debian: apt-get install freecad-python3)")
+    exe = _freecadcmd(args.freecadcmd)
     for path in inputs.values():
         if not path.is_file():
             raise FreeCADError(f"{args.folder}: no {path.name} (not a `carbody reconstruct` folder)")

@@ -70,6 +70,14 @@ class Library:
     template_classes: list[str] = field(default_factory=list)
 
     @property
+    def digest(self) -> str | None:
+        """What identifies the contents: :func:`load_library`'s cache key for a library it
+        loaded, None for any other (built, ``without`` some templates, a ``dataclasses.replace``
+        copy). The fit stores the preparations of a library with a digest on disk
+        (:mod:`carbody.fit.prepared_store`)."""
+        return self.__dict__.get("_digest")
+
+    @property
     def n_models(self) -> int:
         return self.S.shape[1]
 
@@ -173,8 +181,9 @@ def expand(models: np.ndarray, expansion: Expansion = Expansion(), topology: Top
 
 
 def cache_dir() -> Path | None:
-    """Where S is cached: ``$CARBODY_CACHE_DIR`` or ``~/.cache/carbody``; None when there is no
-    home folder to put it in (the library is then built in memory each run)."""
+    """Where S is cached, and the fit's preparations of it (:mod:`carbody.fit.prepared_store`):
+    ``$CARBODY_CACHE_DIR`` or ``~/.cache/carbody``; None when there is no home folder to put it
+    in (both are then built in memory each run)."""
     env = os.environ.get("CARBODY_CACHE_DIR")
     if env:
         return Path(env)
@@ -238,11 +247,10 @@ def load_library(folder: str | Path | None = None, expansion: Expansion = Expans
     cache = cache_dir()
     path = None if cache is None else cache / f"library-{key}.npz"
     cached = _read_cache(path) if path is not None else None
-    if cached is not None:
-        return cached
-    lib = build_library(folder, expansion)
-    if path is not None:
+    lib = cached if cached is not None else build_library(folder, expansion)
+    if cached is None and path is not None:
         _write_cache(path, lib)
+    lib._digest = key
     return lib
 
 

@@ -138,6 +138,8 @@ class Reconstruction:
 
     def summary(self, report: dict) -> str:
         """A few lines for a person: view, residual, accuracy when known, body checks, times."""
+        from carbody.fit.report import fit_notes, wheelbase_source
+
         fit, view = report["fit"], report["view"]
         source = view["source"]
         if source == "given":
@@ -153,10 +155,8 @@ class Reconstruction:
                f"(focal length {fit['focal_length_px']:.0f} px)" if fit["camera_turn_deg"] else ""),
             f"keypoints: {fit['keypoints_annotated']}, reprojection residual mean "
             f"{fit['residual_px_mean']:.2f} px, max {fit['residual_px_max']:.2f} px",
-            f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({fit['wheelbase_from']})",
+            f"wheelbase: {fit['wheelbase_mm']:.0f} mm ({wheelbase_source(fit)})",
         ]
-        from carbody.fit.report import fit_notes
-
         lines += fit_notes(fit)
         if "error_mm_mean" in fit:
             lines.append(f"3D keypoint error vs truth: mean {fit['error_mm_mean']:.1f} mm, "
@@ -356,7 +356,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
                 elevation_deg: float = 0.0, camera_distance_mm: float | str | None = "auto",
                 principal_point: str | tuple[float, float] = "auto", focal_35mm: float | None = None,
                 name: str | None = None, library=None, reject_outliers: bool = True,
-                view_prior_weight: float = 1.0, outline: bool = False, force: bool = False,
+                view_prior_weight: float = 1.0, outline: bool = False, wheels: bool = True, force: bool = False,
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Photo + keypoints -> the car's wireframe and sewn body.
 
@@ -367,7 +367,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             (``"front 30"``, ``"front 30 right"``: :func:`carbody.camera.read_view`): a prior on
             the fit's search over every view; None takes the shipped view classifier's
             probabilities as that prior.
-        wheelbase_mm: the car's real wheelbase; None uses the fitted mix of the templates'.
+        wheelbase_mm: the car's real wheelbase; None: from the fitted car's proportions.
         elevation_deg: the camera elevation told (a prior of the search).
         camera_distance_mm: how far the camera stood from the car's centre (a pinhole camera:
             nearer parts look larger); "auto" (default: photos are taken from a few metres)
@@ -388,6 +388,8 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             search (a factor on its −log prior; 0: the marks alone).
         outline: cut the car out of the photo and fit its outline with the marks
             (:mod:`carbody.fit.outline`); False: the marks alone.
+        wheels: find the wheels' hubs in the photo and fit them with the marks
+            (:mod:`carbody.fit.wheels`); False: the marks alone.
         force: give the car even when the fit explains the marks badly.
         on_stage: called with each stage's name as it starts (progress display).
 
@@ -414,7 +416,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     name = name or (image_path.stem if image_path else "car")
     options = FitOptions(camera_distance_mm=camera_distance_mm, principal_point=principal_point,
                          robust=reject_outliers, check_orthographic=True, view_prior_weight=view_prior_weight,
-                         outline=outline)
+                         outline=outline, wheels=wheels)
     prior = None if view is None else View(read_view(view), elevation_deg)
     focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
 

@@ -179,6 +179,13 @@ class FitPolicy:
     distance_passes: int = 3
     distance_agreement: float = 0.005
 
+    # ---- the car's size when no wheelbase or distance is told (carbody.fit.size)
+
+    #: The least uncertainty of each fitted proportion (length, width, height in wheelbases),
+    #: a fraction: the published figures' ±2 % and the keypoints standing in for the extents'
+    #: spread, which the fit's posterior does not know.
+    size_proportion_floor: float = 0.03
+
     # ---- the car's outline in the photo (carbody.fit.outline)
 
     #: The segmentation works on the photo scaled down to this many pixels on its longer side:
@@ -222,6 +229,70 @@ class FitPolicy:
     #: Match–solve rounds at the view found, and the fewest matches the outline is used with.
     outline_passes: int = 3
     outline_min_points: int = 8
+
+    # ---- the wheels in the photo (carbody.fit.wheels)
+
+    #: A wheel is looked for when the camera sees its outer face at least this much (the cosine
+    #: between the face's normal and the way to the camera; 0.3: 17° off edge-on): nearer
+    #: edge-on the tyre's tread and the body hide the hub, and the view's error stretches the
+    #: warped wheel most.
+    wheel_min_facing: float = 0.3
+
+    #: … and when its tyre (this share of the arch's radius) is at least this many photo pixels
+    #: in radius: smaller, its rim is a few pixels and any blob is a circle.
+    wheel_tyre_share: float = 0.85
+    wheel_min_radius_px: float = 12.0
+
+    #: The hub is looked for within this many arch radii of where the fit puts it (the arch
+    #: clearance and the view's error move it by less), on circles of these radii (arch radii:
+    #: the rim's edge and the spokes' arcs inside, the tyre's outline out to the arch).
+    wheel_window: float = 1.0
+    wheel_radii: tuple[float, float] = (0.3, 1.05)
+
+    #: Stretches of the warped patch along the car that are tried: the view found is a few
+    #: degrees off, which stretches the wheel's circle into an ellipse (most near edge-on: at
+    #: 20° off it, 5° of azimuth stretch it by a quarter).
+    wheel_aspects: tuple[float, ...] = (0.62, 0.7, 0.79, 0.89, 1.0, 1.12, 1.26, 1.41)
+
+    #: At least this share of the warped patch must lie on the photo (else the wheel is cut off).
+    wheel_min_inside: float = 0.5
+
+    #: One circle adds the share of its circumference that edges support less the floor, and
+    #: at most the cap less the floor, to a centre's score: a hub is several concentric
+    #: circles, not one crisp round thing, nor the few pixels that spokes' and panels'
+    #: straight edges give every circle.
+    wheel_circle_floor: float = 0.25
+    wheel_circle_cap: float = 0.75
+
+    #: A circle's support is counted in this many equal sectors round it, from edges whose
+    #: gradient lies within acos(``wheel_alignment``) of its radius; the rough Hough centres'
+    #: best ``wheel_candidates`` are scored so.
+    wheel_sectors: int = 24
+    wheel_alignment: float = 0.9
+    wheel_candidates: int = 8
+
+    #: A hub is found when its score is at least ``wheel_min_score`` (a circle whole all round
+    #: counts about 1.5: more than one such circle) and ``wheel_min_margin`` times the best
+    #: centre more than ``wheel_separation`` arch radii away: clutter and a body panel score
+    #: alike everywhere.
+    wheel_min_score: float = 1.8
+    wheel_min_margin: float = 1.5
+    wheel_separation: float = 0.35
+
+    #: A hub found counts as a mark of this many times the marks' noise (read off the marks); one
+    #: the fit puts more than ``wheel_robust_scale`` of those from it is weighted down (Cauchy),
+    #: over ``wheel_passes`` solves.
+    wheel_noise_ratio: float = 1.5
+    wheel_robust_scale: float = 2.5
+    wheel_passes: int = 3
+
+    #: The hubs are looked for this many times, each at the car fitted to those found before.
+    wheel_rounds: int = 2
+
+    #: With hubs found, the body's height on its wheels joins the shape prior at this standard
+    #: deviation, normalised units (≈ 54 mm at a 2.7 m wheelbase): the templates share one arch
+    #: clearance, real cars range from lowered to lifted (0: the library's alone).
+    wheel_ride_height_sd: float = 20.0
 
 
 #: The policy every fit uses unless told another.

@@ -21,8 +21,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                         "or a name ('front 30', 'rear 30 right'): a prior on the search over every view; "
                         "default: the shipped view classifier's probabilities")
     p.add_argument("--wheelbase", type=float, default=None,
-                   help="the car's wheelbase in mm (default: fitted); told, the fit also knows "
-                        "the car's width and height in mm")
+                   help="the car's wheelbase in mm (default: from the fitted car's proportions); "
+                        "told, the fit also knows the car's width and height in mm")
     p.add_argument("--elevation", type=float, default=0.0,
                    help="camera elevation told, degrees (default 0: a prior of the search)")
     add_camera_arguments(p)
@@ -76,7 +76,7 @@ def _reconstruct_into(args: argparse.Namespace, view, distance, library, out) ->
                                  elevation_deg=args.elevation, camera_distance_mm=distance, library=library,
                                  principal_point=args.principal_point, focal_35mm=args.focal_35mm,
                                  reject_outliers=not args.keep_marks, view_prior_weight=args.view_weight,
-                                 outline=args.outline, force=args.force, on_stage=on_stage)
+                                 outline=args.outline, wheels=args.wheels, force=args.force, on_stage=on_stage)
         except CarbodyError as exc:
             partial = getattr(exc, "partial", None)
             if partial is None:

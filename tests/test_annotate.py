@@ -153,6 +153,61 @@ def test_enter_places_a_ghost_where_it_is_and_hidden_names_are_not_asked_again(t
         session.accept("no_such_keypoint")
 
 
+def test_after_the_fit_the_page_asks_only_for_ghosts_on_the_photo_least_sure_first(tmp_path, example_marks):
+    """The example cut at the nose: the ghosts the car puts off the photo are drawn but never
+    asked (nobody can click them); the rest are asked, the one the fit is least sure of first."""
+    import cv2
+
+    from carbody.annotate.session import AnnotationSession
+
+    cut = 250  # px off the photo's left: the nose and the front wheel's front go
+    photo = tmp_path / "cut.png"
+    cv2.imwrite(str(photo), cv2.imread(str(EXAMPLE))[:, cut:])
+    marks = {n: (u - cut, v) for n, (u, v) in example_marks.items() if u > cut + 5}
+    session = AnnotationSession(photo, output=tmp_path / "m.json", classify=False, full_fits=False,
+                                warm_up=False, view=30)
+    for name in list(marks)[:12]:
+        state = session.place(name, marks[name])
+    ghosts = state["fit"]["ghosts"]
+    off = {n for n, g in ghosts.items() if not g["in_photo"]}
+    assert off and all(ghosts[n]["uv"][0] < 0 for n in off)
+    assert off.isdisjoint(state["ask"]) and set(state["ask"]) == set(ghosts) - off
+    sure = [ghosts[n]["sd_px"] for n in state["ask"]]
+    assert sure == sorted(sure, reverse=True) and sure[0] > sure[-1]
+
+
+def test_marking_a_keypoint_hidden_answers_without_a_refit(tmp_path, example_marks):
+    """H changes nothing the fit reads: the page's answer is the fit it had (no quick fit run),
+    still refined if it was, and the keypoint is asked no more; hiding a placed mark refits."""
+    session = quiet_session(tmp_path)
+    for _ in range(6):
+        name = session.state()["ask"][0]
+        session.place(name, example_marks[name])
+    state = session.refine_now()
+    assert state["refined"]
+    asked = state["ask"][0]
+    fit_before = session.payload
+    after = session.hide(asked)
+    assert session.payload is fit_before and after["refined"] and after["revision"] == state["revision"] + 1
+    assert after["fit_revision"] == after["revision"] and asked not in after["ask"]
+    placed = next(iter(after["marks"]))
+    again = session.hide(placed)
+    assert session.payload is not fit_before and placed not in again["marks"] and not again["refined"]
+
+
+def test_before_the_fit_the_page_asks_what_the_guessed_view_shows_squarely(tmp_path):
+    """The first keypoints asked face the camera squarely from the guessed view and from views
+    20° either side of it (a guess may be that far off): none is seen edge on."""
+    from carbody.annotate import guide
+    from carbody.camera import View
+
+    session = quiet_session(tmp_path)
+    first = session.state()["ask"][:5]
+    for delta in (-20.0, 0.0, 20.0):
+        cos = guide.facing_cosines(View(30.0 + delta, 5.0))
+        assert all(guide.markable(cos[n]) == 1.0 for n in first), (delta, first)
+
+
 def test_a_mark_the_fit_leaves_out_is_said_next_to_it(tmp_path, example_marks):
     """All the example's marks with one clicked 80 px off: the page's payload says that mark is
     left out (and why), the others keep residuals of a pixel or two."""

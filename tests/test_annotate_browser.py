@@ -104,3 +104,65 @@ def test_clicking_the_examples_marks_ghosts_dragging_accepting_and_saving(page, 
     assert read_keypoints(tmp_path / "marks.json").points.keys() == saved["keypoints"].keys()
     latencies = page.js("return window.carbody.latencies")
     assert any(x["kind"] == "refined" for x in latencies)
+
+
+def test_loaded_marks_next_previous_picking_and_zooming(tmp_path):
+    """Marks loaded with -k appear as placed and are saved as read; N and P step through the
+    keypoints asked; one picked from the list is placed by the next click on the photo (a hidden
+    one too); the wheel zooms about the pointer, and a click on the zoomed photo still lands on
+    the pixel aimed at."""
+    from selenium.webdriver.support.ui import Select
+
+    from carbody.annotate.browser import Page, headless_chromium
+    from carbody.annotate.server import AnnotationServer
+    from carbody.annotate.session import AnnotationSession
+    from carbody.fit import read_keypoints
+
+    truth = read_keypoints(EXAMPLE_MARKS).points
+    loaded = {n: [round(u), round(v)] for n, (u, v) in list(truth.items())[:3]}
+    source = tmp_path / "start.json"
+    source.write_text(json.dumps({"image": "car.png", "image_size": [1000, 640], "keypoints": loaded,
+                                  "note": "kept"}))
+    session = AnnotationSession(EXAMPLE, keypoints=source, view="front 30", full_fits=False)
+    server = AnnotationServer(session)
+    server.serve_in_thread()
+    driver = headless_chromium(1400, 900)
+    try:
+        page = Page(driver).open(server.url)
+        state = page.state
+        assert state["marks"] == {n: [float(u), float(v)] for n, (u, v) in loaded.items()}
+        assert page.js("return window.carbody.current") == state["ask"][0]
+
+        page.press("n", changes=False)
+        assert page.js("return window.carbody.current") == state["ask"][1]
+        page.press("n", changes=False)
+        page.press("p", changes=False)
+        assert page.js("return window.carbody.current") == state["ask"][1]
+
+        hidden = state["ask"][0]
+        page.press("p", changes=False)
+        state = page.press("h")
+        assert hidden in state["hidden"] and hidden not in state["ask"]
+        Select(driver.find_element("id", "pick")).select_by_value(hidden)  # picked again
+        assert page.js("return window.carbody.current") == hidden
+
+        scale = page.js("return window.carbody.view.scale")
+        x, y = page.client_xy(*truth[hidden])
+        page.js("""const c = document.getElementById('photo');  // three notches of the wheel, at the keypoint
+                   for (let i = 0; i < 3; i++) c.dispatchEvent(new WheelEvent('wheel', {deltaY: -120,
+                     clientX: arguments[0], clientY: arguments[1], bubbles: true, cancelable: true}));""", x, y)
+        assert page.js("return window.carbody.view.scale") > 1.5 * scale
+        assert np.hypot(*np.subtract(page.client_xy(*truth[hidden]), (x, y))) <= 2  # about the pointer
+        state = page.click_at(*truth[hidden])
+        assert hidden in state["marks"] and hidden not in state["hidden"]
+        assert np.hypot(*np.subtract(state["marks"][hidden], truth[hidden])) < CLICK_PX / 2
+
+        page.press("s", changes=False)
+        page.wait(lambda: json.loads(source.read_text()).get("hidden") == [], 10, "the saved file")
+        saved = json.loads(source.read_text())
+        assert saved["note"] == "kept" and {n: saved["keypoints"][n] for n in loaded} == loaded
+    finally:
+        driver.quit()
+        server.shutdown()
+        server.server_close()
+        session.close()

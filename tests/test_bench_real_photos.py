@@ -69,6 +69,7 @@ def bench_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench_real_photos")
     proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "bench_real_photos.py"), "--data", str(DATA),
                            "--out", str(out), "--photos", *PHOTOS, "--json", str(out / "rows.json"),
+                           "--check-estimates",
                            # one BLAS thread: the test checks the instrument, not a user's times, and
                            # OpenBLAS's own threads make a fit several times slower on a busy machine
                            "--blas-threads", "1"],
@@ -124,3 +125,18 @@ def test_the_contact_sheet_is_written_into_the_output_folder(bench_run):
     assert data["contact_sheet"].startswith(str(out))
     for photo in PHOTOS:  # each run's record beside its folder, for --reuse
         assert (out / f"{photo}.run.json").exists()
+
+
+@needs_data
+def test_a_view_found_far_from_the_estimate_is_measured_at_the_estimate_too(bench_run):
+    """Every body whose view lies more than 15° from the estimate has the estimate-kept fit
+    beside it, measured the same way (the estimate is by eye: the human polygons arbitrate)."""
+    _, stdout, data = bench_run
+    off = [r["photo"] for r in data["rows"] if r["outcome"] == "body" and r["view_diff_deg"] > 15]
+    checks = data["estimate_checks"] or []
+    assert [c["photo"] for c in checks] == off
+    for c in checks:
+        assert "error" not in c
+        for fit in (c["found"], c["at_estimate"]):
+            assert math.isfinite(fit["residual_pct"]) and set(fit["iou"]) == {"windshield", "rear_window", "hood"}
+    assert bool(off) == ("against the estimate kept" in stdout)

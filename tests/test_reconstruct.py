@@ -64,7 +64,7 @@ def test_every_output_is_written_and_reads_back(written, topology):
     assert report["fit"]["error_mm_at_truth_wheelbase_mean"] < 25.0
     summary = (out / "summary.txt").read_text()
     assert "residual" in summary and "3D keypoint error" in summary and "mm from the car's centre" in summary
-    assert "expected 3D keypoint error" in summary and "(library mix)" in summary
+    assert "expected 3D keypoint error" in summary and "(from its proportions, ±" in summary
 
 
 def test_the_assembly_holds_both_named_parts(written, result):

@@ -145,11 +145,17 @@ print("RESULT " + json.dumps({{
 def test_reconstruct_runs_in_a_qprocess_with_its_progress_while_freecad_keeps_running(tmp_path):
     """The GUI's Reconstruct runs carbody in a QProcess: FreeCAD's event loop keeps turning (a
     timer ticks all along), each stage line comes as the command writes it, a failure ends in
-    its one line, and the whole job hands over the wireframe read back as wireframe JSON."""
+    its one line, and the whole job hands over the wireframe read back as wireframe JSON and
+    the editable body surfaced from it (its shape read, its report)."""
     fake = tmp_path / "fake_carbody.py"
     fake.write_text("import sys, time\n"
                     "if sys.argv[1] == 'wireframe':\n"
                     "    open(sys.argv[4], 'w').write('{\"file\": \"' + sys.argv[2].rsplit('/', 1)[-1] + '\"}'); sys.exit(0)\n"
+                    "if sys.argv[1] == 'surface':  # a box for a body, from the wireframe JSON read back\n"
+                    "    import json, shutil\n"
+                    "    shutil.copy(sys.argv[0].replace('fake_carbody.py', 'box.step'), sys.argv[4])\n"
+                    "    json.dump({'faces': [], 'folds': [], 'from': json.load(open(sys.argv[2]))}, open(sys.argv[6], 'w'))\n"
+                    "    sys.exit(0)\n"
                     "if sys.argv[1] == 'fail':\n"
                     "    print('carbody reconstruct: error: the keypoints are coincident', file=sys.stderr); sys.exit(2)\n"
                     "for stage in ('view', 'fit', 'surfaces', 'write'):\n"
@@ -158,7 +164,9 @@ def test_reconstruct_runs_in_a_qprocess_with_its_progress_while_freecad_keeps_ru
     result = run_freecad(f"""
 import json, sys, time, FreeCAD
 from PySide import QtCore
+import Part
 from carbody_wb import core
+Part.makeBox(10, 20, 30).exportStep({str(tmp_path / "box.step")!r})
 app = QtCore.QCoreApplication.instance() or QtCore.QCoreApplication([])
 command = [{sys.executable!r}, {str(fake)!r}]
 events = []
@@ -180,7 +188,8 @@ bad = run(["fail"])
 loop = QtCore.QEventLoop()
 said, finished = [], {{}}
 def job_done(ok, result):
-    finished.update(ok=ok, result=result); loop.quit()
+    shape, report = result["surfaced"]
+    finished.update(ok=ok, wire_json=result["wire_json"], faces=len(shape.Faces), report=report); loop.quit()
 core.ReconstructJob("car.png", "car.json", {str(tmp_path / "out")!r}, command=command, on_progress=said.append,
                     on_done=job_done).start()
 loop.exec_()
@@ -194,8 +203,143 @@ print("RESULT " + json.dumps({{"good": good, "bad": bad, "events": events, "tick
     # the lines came as they were written, and the timer ticked in between: nothing blocked
     assert stages[-1][0] - stages[0][0] > 0.6 and stages[-1][2] - stages[0][2] >= 8
     assert not bad["ok"] and bad["message"] == "carbody reconstruct: error: the keypoints are coincident"
-    assert result["job"] == {"ok": True, "result": {"file": "wireframe.step"}}
-    assert result["said"] == ["stage view", "stage fit", "stage surfaces", "stage write", "reading the wireframe back"]
+    job = result["job"]
+    assert job["ok"] and job["wire_json"] == {"file": "wireframe.step"} and job["faces"] == 6
+    assert job["report"] == {"faces": [], "folds": [], "from": {"file": "wireframe.step"}}
+    assert result["said"] == ["stage view", "stage fit", "stage surfaces", "stage write", "reading the wireframe back",
+                              "surfacing the editable body"]
+
+
+#: A carbody command for the GUI test: ``reconstruct`` writes its stage lines and a prepared
+#: reconstruction (``$FAKE_RECONSTRUCTION``) into ``-o``; every other subcommand is the real
+#: carbody's. Each call is logged (``$FAKE_LOG``) with the time it started and ended.
+FAKE_CARBODY = """
+import os, shutil, subprocess, sys, time
+start = time.monotonic()
+if sys.argv[1] == "reconstruct":
+    for stage in ("view", "fit", "surfaces", "write"):
+        print(f"carbody: stage {stage}", file=sys.stderr, flush=True)
+        time.sleep(0.4)
+    out = sys.argv[sys.argv.index("-o") + 1]
+    shutil.copytree(os.environ["FAKE_RECONSTRUCTION"], out, dirs_exist_ok=True)
+    code = 0
+else:
+    code = subprocess.call([sys.executable, "-m", "carbody", *sys.argv[1:]])
+with open(os.environ["FAKE_LOG"], "a") as log:
+    log.write(f"{sys.argv[1]} {start} {time.monotonic()}\\n")
+sys.exit(code)
+"""
+
+#: Run in FreeCAD's GUI: the Reconstruct command as a user runs it (photo and keypoints chosen,
+#: the output folder picked in the dialog), a 50 ms timer ticking all along; when the car is in,
+#: what the GUI shows is written to RESULT_PATH.
+GUI_SCRIPT = """
+import json, os, sys, time
+sys.path.insert(0, {workbench!r})
+import FreeCAD, FreeCADGui
+from PySide import QtCore, QtGui
+from carbody_wb import commands, core
+commands.register()
+params = FreeCAD.ParamGet(core.PARAM_PATH)
+params.SetString("LastImage", {image!r})
+params.SetString("LastKeypoints", {keypoints!r})
+QtGui.QFileDialog.getExistingDirectory = staticmethod(lambda *args, **kwargs: {out!r})
+window = FreeCADGui.getMainWindow()
+said, ticks = [], []
+window.statusBar().messageChanged.connect(lambda text: said.append([time.monotonic(), text]) if text else None)
+timer = QtCore.QTimer()
+timer.timeout.connect(lambda: ticks.append(time.monotonic()))
+timer.start(50)
+
+def collect():
+    doc = FreeCAD.ActiveDocument
+    body = doc.getObject("CarBody")
+    regions = [o for o in doc.getObject("Body").Group if o is not body]
+    report = window.findChild(QtGui.QTextEdit, "Report view")
+    with open({result!r}, "w") as f:
+        json.dump({{"said": said, "ticks": ticks,
+                    "face_colours": [list(c)[:3] for c in body.FaceColours],
+                    "shown_colours": [list(c)[:3] for c in body.ViewObject.DiffuseColor],
+                    "faces": len(body.Shape.Faces), "status": body.Status,
+                    "regions": {{o.Label: [list(o.Colour)[:3], list(o.ViewObject.ShapeColor)[:3]] for o in regions}},
+                    "curves": len(doc.getObject("Wireframe").Group),
+                    "report_view": report.toPlainText() if report is not None else None}}, f)
+    # an edit afterwards surfaces the body again (the body made in the background served once)
+    from carbody_wb import model
+    model.move_junction(doc, "roof_front_corner", (0, 0, 30))
+    doc.recompute()
+    os._exit(0)
+
+def check():
+    if said and said[-1][1].startswith("carbody: done"):
+        poll.stop()
+        QtCore.QTimer.singleShot(1000, collect)  # the colours are painted after Part's own update
+
+def give_up():
+    with open({result!r}, "w") as f:
+        json.dump({{"said": said, "timed_out": True}}, f)
+    os._exit(3)
+
+FreeCADGui.runCommand("Carbody_Reconstruct")
+poll = QtCore.QTimer()
+poll.timeout.connect(check)
+poll.start(100)
+QtCore.QTimer.singleShot(180000, give_up)
+"""
+
+
+@pytest.mark.skipif(not (shutil.which("xvfb-run") and shutil.which("freecad")),
+                    reason="needs FreeCAD's GUI (freecad-python3) and xvfb-run")
+def test_the_guis_reconstruct_runs_in_the_background_and_brings_the_car_in_coloured(tmp_path, example_reconstruction):
+    """FreeCAD's GUI (under xvfb-run), the Reconstruct command clicked: the stages come into the
+    status bar and the report view while the event loop keeps turning; the job reads the
+    wireframe back and surfaces the editable body in the background, so bringing the car in
+    runs no carbody (no wait in FreeCAD's own thread); the body's faces and each region object
+    show their region's colour."""
+    prepared, out = tmp_path / "prepared", tmp_path / "out"
+    example_reconstruction.write(prepared)
+    fake, log, result = tmp_path / "fake_carbody.py", tmp_path / "calls.log", tmp_path / "gui.json"
+    fake.write_text(FAKE_CARBODY)
+    script = tmp_path / "gui_reconstruct.py"
+    script.write_text(GUI_SCRIPT.format(workbench=str(WORKBENCH), image=str(REPO / "examples" / "car.png"),
+                                        keypoints=str(REPO / "examples" / "car_keypoints.json"), out=str(out),
+                                        result=str(result)))
+    env = {**os.environ, "CARBODY_COMMAND": f"{sys.executable} {fake}", "FAKE_RECONSTRUCTION": str(prepared),
+           "FAKE_LOG": str(log), "QTWEBENGINE_DISABLE_SANDBOX": "1", "HOME": str(tmp_path / "home")}
+    proc = subprocess.run(["xvfb-run", "-a", "freecad", str(script)], capture_output=True, text=True,
+                          timeout=300, env=env, cwd=tmp_path)
+    assert result.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    r = json.loads(result.read_text())
+    said = [text for _, text in r["said"]]
+    assert not r.get("timed_out"), said
+    stages = [f"carbody: stage {s}" for s in ("view", "fit", "surfaces", "write")]
+    # (FreeCAD's console shows each report-view line in the status bar too: a line may come twice)
+    assert list(dict.fromkeys(t for t in said if t in stages)) == stages, said
+    assert "carbody: reading the wireframe back" in said and "carbody: surfacing the editable body" in said
+    assert said[-1].startswith("carbody: done"), said
+    for line in stages + ["carbody: reading the wireframe back"]:
+        assert line in r["report_view"]
+    # the event loop turned all along: ticks between the first stage and the last job step
+    times = {}
+    for t, text in r["said"]:
+        times.setdefault(text, t)
+    ticks = np.array(r["ticks"])
+    first, last = times[stages[0]], times["carbody: surfacing the editable body"]
+    assert np.count_nonzero((ticks > first) & (ticks < last)) >= 0.5 * (last - first) / 0.05
+    # carbody ran three times, all in the job's QProcesses: bringing the car in ran none
+    calls = [line.split() for line in log.read_text().splitlines()]
+    assert [c[0] for c in calls] == ["reconstruct", "wireframe", "surface", "surface"]
+    # (time.monotonic is one clock per machine): the job's surface ended before the car came in,
+    # the next one is the edit's, after it
+    assert float(calls[2][2]) < times["carbody: bringing the car in ..."] < times[said[-1]] < float(calls[3][1])
+    # the colours: every face painted its region's, every region object shows its own
+    from carbody.surface.body import region_colour
+
+    assert r["faces"] == len(r["face_colours"]) == len(r["shown_colours"]) and r["status"].startswith("valid")
+    assert np.allclose(r["shown_colours"], r["face_colours"], atol=1 / 255)
+    assert len(r["regions"]) == 13 and r["curves"] == 125
+    for region, (colour, shown) in r["regions"].items():
+        assert np.allclose(colour, region_colour(region), atol=1 / 255) and np.allclose(shown, colour, atol=1 / 255), region
 
 
 def test_the_macro_reconstructs_headless_and_the_document_matches_the_step_files(tmp_path):
@@ -386,9 +530,10 @@ print("RESULT " + json.dumps(sorted(o.Label for o in doc.Objects if o.TypeId == 
 
 
 def test_the_carbody_command_is_found_in_its_order_env_preference_venv_path(tmp_path):
-    """$CARBODY_COMMAND, else the preference, else the carbody of a .venv in the checkout the
-    workbench folder was linked from (the link in FreeCAD's Mod/ followed; before PATH), else
-    carbody on PATH, else the bare name (running it then says it is not found)."""
+    """$CARBODY_COMMAND, else the preference, else the carbody of the virtual environment the
+    workbench came from (the link in FreeCAD's Mod/ followed; before PATH): the one it was
+    installed in, or a .venv in the checkout it was linked from; else carbody on PATH, else the
+    bare name (running it then says it is not found)."""
     checkout = tmp_path / "checkout"
     (checkout / ".venv" / "bin").mkdir(parents=True)
     fake = checkout / ".venv" / "bin" / "carbody"
@@ -402,6 +547,18 @@ def test_the_carbody_command_is_found_in_its_order_env_preference_venv_path(tmp_
     on_path.mkdir()
     (on_path / "carbody").write_text("#!/bin/sh\n")
     (on_path / "carbody").chmod(0o755)
+    # installed with pip into a virtual environment of any name: the workbench lies in its
+    # site-packages, linked into another Mod/ folder (as `carbody freecad-workbench` links it)
+    venv = tmp_path / "cad-env"
+    shipped = venv / "lib" / "python3.11" / "site-packages" / "carbody" / "shipped" / "workbench"
+    shutil.copytree(WORKBENCH, shipped, ignore=shutil.ignore_patterns("__pycache__"))
+    (venv / "pyvenv.cfg").write_text("home = /usr/bin\n")
+    (venv / "bin").mkdir()
+    (venv / "bin" / "carbody").write_text("#!/bin/sh\n")
+    (venv / "bin" / "carbody").chmod(0o755)
+    installed_mod = tmp_path / "Mod2"
+    installed_mod.mkdir()
+    (installed_mod / "carbody").symlink_to(shipped)
     result = run_freecad(f"""
 import json, os, sys, FreeCAD
 sys.path.insert(0, {str(mod / "carbody")!r})
@@ -411,6 +568,7 @@ core.set_carbody_command("")
 out = {{"venv": core.carbody_command(path={str(on_path)!r}),
         "path": core.carbody_command({str(mod)!r}, path={str(on_path)!r}),
         "none": core.carbody_command({str(mod)!r}, path="/nonexistent"),
+        "installed": core.carbody_command({str(installed_mod / "carbody")!r}, path={str(on_path)!r}),
         "no_venv_above_root": core.venv_carbody("/")}}
 try:
     core.set_carbody_command("/opt/set/carbody")
@@ -422,7 +580,30 @@ finally:
 print("RESULT " + json.dumps(out))
 """, tmp_path, env={"CARBODY_COMMAND": ""})
     assert result["env"] == ["/opt/other/carbody", "--flag"]
+    assert result["installed"] == [str(venv / "bin" / "carbody")]
     assert result["preference"] == ["/opt/set/carbody"]
     assert result["venv"] == [str(fake)]
     assert result["path"] == [str(on_path / "carbody")]
     assert result["none"] == ["carbody"] and result["no_venv_above_root"] is None
+
+
+def test_freecad_workbench_links_the_shipped_workbench_into_freecads_mod_folder(tmp_path):
+    """`carbody freecad-workbench`: the link in the Mod/ folder FreeCAD itself reads (asked of
+    freecadcmd, here under a fresh HOME) points at the workbench carbody ships; run again it
+    replaces its link; a folder of the user's own there is left alone, refused in one line."""
+    from carbody.shipped import WORKBENCH as SHIPPED
+
+    home = tmp_path / "home"
+    env = {**os.environ, "HOME": str(home)}
+    run = lambda *args: subprocess.run([sys.executable, "-m", "carbody", "freecad-workbench", *args],
+                                       capture_output=True, text=True, env=env, cwd=REPO)
+    first, again = run(), run()
+    links = list(home.rglob("Mod/carbody"))
+    assert first.returncode == again.returncode == 0, first.stderr
+    assert len(links) == 1 and links[0].is_symlink() and links[0].resolve() == SHIPPED.resolve()
+    assert (links[0] / "InitGui.py").is_file() and "restart FreeCAD" in first.stdout
+    own = tmp_path / "Mod" / "carbody"
+    own.mkdir(parents=True)
+    refused = run("--mod-dir", str(tmp_path / "Mod"))
+    lines = refused.stderr.strip().splitlines()
+    assert refused.returncode == 2 and len(lines) == 1 and "not a link" in lines[0] and own.is_dir()

@@ -26,18 +26,19 @@ from carbody.camera import View, project
 from carbody.policy import FIT_POLICY, FitPolicy
 
 #: The page starts fitting at this many marks (the fewest :func:`carbody.fit.fit_wireframe`
-#: accepts; the policy's ``min_kept`` is lowered to it until there are more).
+#: accepts).
 MIN_MARKS = 5
 
 #: The quick fit's scan: azimuth step (degrees) and refinement budget (solves). The scan still
 #: goes all round the car (a wrong early view is left for the right one), at one elevation and
 #: one perspective: the last fit's, which the next click rarely moves by more than the
-#: refinement reaches. Measured against the full fit of the same marks (example and three real
-#: photos, 6 marks to all): this budget takes half the time of 15 / 30 solves and lands 2 px
-#: from the full fit in the median (0.7 px); a 45° step lands 9 px off (BENCHMARKS: annotate).
+#: refinement reaches. Against the full fit of the same marks (the example and three real
+#: photos, 6 marks to all), polishing with 10 solves instead of 15 took 15 % less processor
+#: time and landed as near (3 px in the median); a 45° step lands 9 px off. The benchmark
+#: measures how far the quick fit lands from the full one on every click (BENCHMARKS: annotate).
 QUICK_AZIMUTH_STEP_DEG = 30.0
 QUICK_COARSE_EVALUATIONS = 10
-QUICK_POLISH_EVALUATIONS = 15
+QUICK_POLISH_EVALUATIONS = 10
 
 #: Points per curve of the wireframe the page draws.
 CURVE_SAMPLES = 12
@@ -46,16 +47,10 @@ CURVE_SAMPLES = 12
 PX_DECIMALS = 2
 
 
-def marks_policy(marks: int, policy: FitPolicy = FIT_POLICY) -> FitPolicy:
-    """``policy`` with ``min_kept`` lowered to the marks there are (at five or more): the fit
-    accepts five marks, and its default keeps six."""
-    return replace(policy, min_kept=min(policy.min_kept, max(marks, MIN_MARKS)))
-
-
-def quick_policy(marks: int, previous: View | None) -> FitPolicy:
+def quick_policy(previous: View | None) -> FitPolicy:
     """The per-click fit's policy (module docstring): the scan at the previous view's elevation
     and perspective, every ``QUICK_AZIMUTH_STEP_DEG``, one candidate refined briefly."""
-    policy = replace(marks_policy(marks), scan_azimuth_step_deg=QUICK_AZIMUTH_STEP_DEG,
+    policy = replace(FIT_POLICY, scan_azimuth_step_deg=QUICK_AZIMUTH_STEP_DEG,
                      refined_candidates=1, coarse_evaluations=QUICK_COARSE_EVALUATIONS,
                      polish_evaluations=QUICK_POLISH_EVALUATIONS)
     if previous is None:
@@ -78,6 +73,7 @@ class LiveFit:
         seconds: how long the fit took (wall clock).
         cpu_seconds: the processor time it took (its thread's): what it costs on an idle
             machine, where a busy one stretches ``seconds``.
+        image_size: the photo's (width, height), px.
     """
 
     fit: object | None
@@ -85,6 +81,7 @@ class LiveFit:
     quick: bool
     seconds: float
     cpu_seconds: float = 0.0
+    image_size: tuple[int, int] | None = None
 
 
 def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int], prior,
@@ -106,7 +103,7 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
     start, cpu = time.perf_counter(), time.thread_time()
     if len(marks) < MIN_MARKS:
         return LiveFit(None, f"{MIN_MARKS - len(marks)} more mark(s) and the car is fitted", quick, 0.0)
-    policy = quick_policy(len(marks), scan_from) if quick else marks_policy(len(marks))
+    policy = quick_policy(scan_from) if quick else FIT_POLICY
     if library is None:
         from carbody.library import default_library
 
@@ -115,8 +112,8 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
         fit = fit_wireframe(dict(marks), prior, library, image_size=image_size,
                             options=FitOptions(camera_distance_mm="auto", policy=policy))
     except CarbodyError as exc:
-        return LiveFit(None, str(exc), quick, time.perf_counter() - start, time.thread_time() - cpu)
-    return LiveFit(fit, None, quick, time.perf_counter() - start, time.thread_time() - cpu)
+        return LiveFit(None, str(exc), quick, time.perf_counter() - start, time.thread_time() - cpu, image_size)
+    return LiveFit(fit, None, quick, time.perf_counter() - start, time.thread_time() - cpu, image_size)
 
 
 def _px(a: np.ndarray) -> list:
@@ -185,10 +182,11 @@ def fit_payload(live: LiveFit, marks: dict[str, tuple[float, float]]) -> dict:
     """What the page draws of a fit (module docstring), JSON-ready.
 
     Keys: ``ok``, ``error``, ``quick``, ``seconds``, ``cpu_seconds``; with a fit also ``view`` (azimuth,
-    elevation, distance mm), ``wireframe`` (polylines), ``marks`` ({name: {reprojected,
-    residual_px, status ("kept", "rejected", "renamed", "suspect"), note}}), ``ghosts``
-    ({name: {uv, sd_px}} for the unmarked names the view shows), ``summary`` (mean residual,
-    poor-fit flags, wheelbase).
+    elevation, distance mm), ``wireframe`` (polylines), ``car_length_px`` (its width in the
+    photo), ``marks`` ({name: {reprojected, residual_px, status ("kept", "rejected", "renamed",
+    "suspect"), note}}), ``ghosts`` ({name: {uv, sd_px, in_photo}} for the unmarked names the
+    view shows: where the car puts it, how far off it may be there, whether that is on the
+    photo), ``summary`` (mean residual, poor-fit flags, wheelbase).
     """
     out = {"ok": live.fit is not None, "error": live.error, "quick": live.quick,
            "seconds": round(live.seconds, 4), "cpu_seconds": round(live.cpu_seconds, 4)}
@@ -197,7 +195,6 @@ def fit_payload(live: LiveFit, marks: dict[str, tuple[float, float]]) -> dict:
         return out
     diag = fit.diagnostics
     points = keypoint_positions(fit)
-    sd_px = image_uncertainty_px(fit, points)
     names = list(points)
     where = dict(zip(names, fit.project_points(np.array([points[n] for n in names]))))
     residual = fit.residuals_px()
@@ -222,14 +219,19 @@ def fit_payload(live: LiveFit, marks: dict[str, tuple[float, float]]) -> dict:
         per_mark[name] = entry
     shown = set(visible_names(fit))
     taken = set(marks) | set(fitted_as.values())
-    ghosts = {n: {"uv": _px(where[n]), "sd_px": round(sd_px.get(n, 0.0), 1)}
+    wireframe = projected_wireframe(fit)
+    length_px = float(np.ptp(np.array(wireframe).reshape(-1, 2)[:, 0]))
+    sd_px = image_uncertainty_px(fit, points)
+    w, h = live.image_size if live.image_size is not None else (np.inf, np.inf)
+    ghosts = {n: {"uv": _px(where[n]), "sd_px": round(sd_px.get(n, 0.0), 1),
+                  "in_photo": bool(0.0 <= where[n][0] <= w and 0.0 <= where[n][1] <= h)}
               for n in names if n in shown and n not in taken}
     values = [e["residual_px"] for e in per_mark.values() if e["status"] != "rejected"]
     view = fit.view
     out.update(
         view={"azimuth_deg": round(float(view.azimuth) % 360.0, 2), "elevation_deg": round(float(view.elevation), 2),
               "distance_mm": None if fit.camera_distance_mm is None else round(fit.camera_distance_mm)},
-        wireframe=projected_wireframe(fit), marks=per_mark, ghosts=ghosts,
+        wireframe=wireframe, car_length_px=round(length_px, 1), marks=per_mark, ghosts=ghosts,
         summary={"mean_residual_px": round(float(np.mean(values)), 2) if values else None,
                  "fits_poorly": bool(diag.fits_poorly), "misses_marks": bool(diag.misses_marks),
                  "wheelbase_mm": round(fit.wheelbase_mm), "swapped": list(diag.swapped) if diag.swapped else None})

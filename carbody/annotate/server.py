@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import secrets
 import threading
+import time
 from functools import cached_property
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -139,6 +140,9 @@ class _Handler(BaseHTTPRequestHandler):
 
     def _send(self, status: int, body: bytes = b"", kind: str = "application/json") -> None:
         self.send_response(status)
+        if getattr(self, "_started_cpu", None) is not None:
+            # what answering took this server's thread (the fit, the page's state, the JSON)
+            self.send_header("X-Carbody-CPU-ms", f"{(time.thread_time() - self._started_cpu) * 1000.0:.1f}")
         self.send_header("Content-Type", kind)
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
@@ -167,6 +171,7 @@ class _Handler(BaseHTTPRequestHandler):
     # ---- GET
 
     def do_GET(self) -> None:
+        self._started_cpu = None  # (one handler serves a kept-alive connection's every request)
         if not self._host_ok():
             return self._error(HTTPStatus.FORBIDDEN, "wrong host")
         url = urlsplit(self.path)
@@ -207,6 +212,7 @@ class _Handler(BaseHTTPRequestHandler):
     # ---- POST
 
     def do_POST(self) -> None:
+        self._started_cpu = time.thread_time()
         if not self._host_ok() or self.headers.get("X-Carbody-Token") != self.server.token:
             return self._error(HTTPStatus.FORBIDDEN, "this page's token is missing")
         session = self.server.session

@@ -94,6 +94,7 @@ class AnnotationSession:
         self._lock = threading.RLock()
         self._changed = threading.Condition(self._lock)
         self.revision = 0
+        self.inputs_revision = 0  # the last edit that changed what is fitted (the marks, the prior)
         self.view_source = "default"
         self.guess = DEFAULT_VIEW
         self.prior = None
@@ -103,7 +104,7 @@ class AnnotationSession:
         self.quick: live_fit.LiveFit | None = None
         self.payload: dict = live_fit.fit_payload(live_fit.LiveFit(None, None, True, 0.0), {})
         self.payload_revision = 0
-        self.full_revision = -1
+        self.full_revision = -1  # the inputs_revision whose full fit has landed
         self.reconstruction = Reconstruction()
         self.saved_revision: int | None = None
         self._worker = None
@@ -152,8 +153,7 @@ class AnnotationSession:
             self.guess = View(float(prediction.theta_deg), DEFAULT_VIEW.elevation)
             self.prior = ViewPrior.from_classifier(CLASS_ANGLES_DEG, prediction.probabilities)
             self.view_source = "classifier"
-            self.revision += 1
-            self._refit()
+            self._edited()
 
     def pick_view(self, azimuth_deg: float) -> dict:
         """The user says which way the car faces: the guess and the fit's prior from now on."""
@@ -176,14 +176,17 @@ class AnnotationSession:
     def remove(self, name: str) -> dict:
         """Remove ``name``'s mark or hidden flag; the new state."""
         with self._lock:
+            marked = name in self.sheet.marks
             self.sheet.remove(name)
-            return self._edited()
+            return self._edited(refit=marked)
 
     def hide(self, name: str) -> dict:
-        """Say the photo does not show ``name``; the new state."""
+        """Say the photo does not show ``name``; the new state (refitted only when it was marked:
+        an H press on a keypoint asked changes nothing the fit reads, and answers at once)."""
         with self._lock:
+            marked = name in self.sheet.marks
             self.sheet.hide(name)
-            return self._edited()
+            return self._edited(refit=marked)
 
     def accept(self, name: str) -> dict:
         """Place ``name`` where its ghost is (Enter on the page); the new state.
@@ -198,9 +201,16 @@ class AnnotationSession:
             self.sheet.place(name, tuple(ghost["uv"]))
             return self._edited()
 
-    def _edited(self) -> dict:
+    def _edited(self, refit: bool = True) -> dict:
+        """A new revision; the marks refitted when ``refit`` (the fit's inputs changed), else the
+        fit stays the current one (and refined if it was)."""
         self.revision += 1
-        self._refit()
+        if refit:
+            self.inputs_revision = self.revision
+            self._refit()
+        else:
+            self.payload_revision = self.revision
+            self._changed.notify_all()
         return self.state()
 
     def _refit(self) -> None:
@@ -233,15 +243,15 @@ class AnnotationSession:
     def _schedule_full_fit(self) -> None:
         if self._timer is not None:
             self._timer.cancel()
-        self._timer = threading.Timer(FULL_FIT_DELAY_S, self._start_full_fit, args=(self.revision,))
+        self._timer = threading.Timer(FULL_FIT_DELAY_S, self._start_full_fit, args=(self.inputs_revision,))
         self._timer.daemon = True
         self._timer.start()
 
     def _start_full_fit(self, revision: int) -> None:
-        """Send the marks of ``revision`` to the worker, unless it is busy (the fit then starts
-        when it answers) or the marks have changed since."""
+        """Send the marks of inputs ``revision`` to the worker, unless it is busy (the fit then
+        starts when it answers) or the marks have changed since."""
         with self._lock:
-            if revision != self.revision or self._closed or self._in_flight is not None:
+            if revision != self.inputs_revision or self._closed or self._in_flight is not None:
                 return
             if self._worker is None:
                 from carbody.annotate.worker import FullFitWorker
@@ -254,27 +264,32 @@ class AnnotationSession:
     def _full_fit_done(self, revision: int, payload: dict | None) -> None:
         with self._lock:
             self._in_flight = None
-            if revision == self.revision:
+            if revision == self.inputs_revision:
                 if payload is not None and payload["ok"]:
                     self.payload = payload
-                    self.payload_revision = revision
+                    self.payload_revision = self.revision
                 self.full_revision = revision
                 self._changed.notify_all()
-            elif revision != self.revision and self.quick is not None and self.quick.fit is not None:
+            elif self.quick is not None and self.quick.fit is not None:
                 # stale: an edit came while it ran; fit the marks as they are now
                 self._schedule_full_fit()
 
     def wait_refined(self, revision: int, timeout: float = 10.0) -> dict | None:
-        """The state once the full fit of ``revision`` has landed; None when another edit came
-        first or it did not land within ``timeout`` seconds."""
+        """The state once the full fit of the marks of ``revision`` has landed; None when another
+        edit came first or it did not land within ``timeout`` seconds."""
         deadline = time.monotonic() + timeout
         with self._lock:
-            while self.full_revision != revision and self.revision == revision and not self._closed:
+            while not self.refined and self.revision == revision and not self._closed:
                 left = deadline - time.monotonic()
                 if left <= 0:
                     return None
                 self._changed.wait(left)
-            return self.state() if self.full_revision == revision == self.revision else None
+            return self.state() if self.refined and self.revision == revision else None
+
+    @property
+    def refined(self) -> bool:
+        """Whether the page shows the full fit of the marks as they are."""
+        return self.full_revision == self.inputs_revision
 
     def refine_now(self) -> dict:
         """Run the full fit of the marks as they are, in this process (the benchmark, the tests)."""
@@ -283,7 +298,7 @@ class AnnotationSession:
             if live.fit is not None:
                 self.quick = live
                 self.payload = live_fit.fit_payload(live, self.sheet.marks)
-                self.payload_revision = self.full_revision = self.revision
+                self.payload_revision, self.full_revision = self.revision, self.inputs_revision
             return self.state()
 
     # ---- what the page shows
@@ -305,9 +320,8 @@ class AnnotationSession:
         if not self.payload.get("ok"):
             return False
         ghosts = self.payload["ghosts"]
-        length = car_length_px(self.payload)
-        left = [g["sd_px"] for n, g in ghosts.items() if n not in self.sheet.hidden]
-        return max(left, default=0.0) <= SETTLED_FRACTION * length
+        left = [ghosts[n]["sd_px"] for n in self.ask_order()]
+        return max(left, default=0.0) <= SETTLED_FRACTION * self.payload["car_length_px"]
 
     def state(self) -> dict:
         """Everything the page draws, JSON-ready."""
@@ -315,7 +329,7 @@ class AnnotationSession:
             view = self.view
             return {
                 "revision": self.revision, "fit_revision": self.payload_revision,
-                "refined": self.full_revision == self.revision,
+                "refined": self.refined,
                 "image": self.sheet.image, "image_size": list(self.image_size),
                 "marks": {n: [float(u), float(v)] for n, (u, v) in self.sheet.marks.items()},
                 "hidden": sorted(self.sheet.hidden),
@@ -390,8 +404,3 @@ class AnnotationSession:
         if self._worker is not None:
             self._worker.close()
 
-
-def car_length_px(payload: dict) -> float:
-    """The fitted car's length in the photo (the projected wireframe's width, px)."""
-    uv = np.array(payload["wireframe"]).reshape(-1, 2)
-    return float(np.ptp(uv[:, 0]))

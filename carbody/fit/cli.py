@@ -9,7 +9,7 @@ from carbody.fit.solve import METHODS
 
 
 def add_marks_argument(p: argparse.ArgumentParser) -> None:
-    """``--keep-marks``, ``--view-weight``, ``--outline`` and ``--force``, shared by ``fit`` and
+    """``--keep-marks``, ``--view-weight``, ``--outline``, ``--wheels`` and ``--force``, shared by ``fit`` and
     ``reconstruct``."""
     p.add_argument("--force", action="store_true",
                    help="give the car even when it explains the marks badly (by default such a fit "
@@ -23,6 +23,9 @@ def add_marks_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--outline", action=argparse.BooleanOptionalAction, default=False,
                    help="also cut the car out of the photo and fit its outline with the marks "
                         "(default off, --no-outline: the marks alone; docs/outline.md)")
+    p.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=True,
+                   help="find the wheels' hubs in the photo and fit them with the marks (default "
+                        "on; --no-wheels: the marks alone; docs/wheels.md)")
 
 
 def add_camera_arguments(p: argparse.ArgumentParser) -> None:
@@ -81,7 +84,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                    help="camera roll of a tilted photo, degrees within ±90 (default 0; kept as given: the "
                         "refinement moves azimuth and elevation only)")
     p.add_argument("--wheelbase", type=float, default=None,
-                   help="real wheelbase, mm (default: the fitted mix of the templates' own); "
+                   help="real wheelbase, mm (default: from the fitted car's proportions); "
                         "told, the fit also knows the car's width and height in mm")
     p.add_argument("--exclude-template", action="append", default=[], metavar="NAME",
                    help="drop a template and its expansions from the library (repeatable)")
@@ -155,7 +158,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.fit.overlay import draw_overlay, write_image
     from carbody.errors import FitRefused
     from carbody.fit.focal import focal_length_px
-    from carbody.fit.report import build_report, draw_error_chart, fit_notes, refusal_line, write_json
+    from carbody.fit.report import build_report, draw_error_chart, fit_notes, refusal_line, wheelbase_source, write_json
     from carbody.fit.options import FitOptions
     from carbody.fit.single_view import fit_wireframe
     from carbody.outputs import (JSON, PHOTO, PICTURE, STEP, check_distinct, check_not_inputs, check_output_file,
@@ -204,10 +207,10 @@ def run_fit(args: argparse.Namespace) -> int:
         options = FitOptions(method=args.method, refine=not args.no_refine, deform=False if args.no_deform else None,
                              robust=not args.keep_marks, camera_distance_mm=distance,
                              principal_point=args.principal_point, focal_px=focal, check_orthographic=True,
-                             view_prior_weight=args.view_weight, outline=args.outline)
+                             view_prior_weight=args.view_weight, outline=args.outline, wheels=args.wheels)
         result = fit_wireframe(ann.points, view, library, image_size=(w, h), wheelbase_mm=args.wheelbase,
                                options=options, name=args.name or Path(args.image).stem,
-                               photo=image[..., ::-1] if options.outline else None)
+                               photo=image[..., ::-1] if options.outline or options.wheels else None)
         overlay = draw_overlay(image, result) if args.overlay else None
         # (the photo plane reads the photo again: only for a report that is written)
         report = build_report(result, truth, image=args.image if args.report else None)
@@ -249,7 +252,7 @@ def run_fit(args: argparse.Namespace) -> int:
     told = f"given {given:g}°, " if given is not None and angular_difference(given, v.azimuth) >= 0.05 else ""
     print(f"fitted {len(result.slots)} keypoints: view {v.azimuth:.1f}° ({told}elevation {v.elevation:.1f}°, "
           f"roll {v.roll:.1f}°, {camera}), residual mean {result.solution.residual_px.mean():.2f} px, "
-          f"wheelbase {result.wheelbase_mm:.0f} mm ({result.wheelbase_from}) -> {args.output}")
+          f"wheelbase {result.wheelbase_mm:.0f} mm ({wheelbase_source(report)}) -> {args.output}")
     for line in fit_notes(report):
         print(line)
     if "error_mm_mean" in report:

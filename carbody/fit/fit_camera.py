@@ -104,25 +104,26 @@ def principal_point_px(principal_point, image_size, focal_px: float | None) -> n
 
 
 def size_from_told_distance(hypothesis: Hypothesis, distance_mm: float, library: Library, policy: FitPolicy,
-                            refit_at) -> tuple[Hypothesis, float | None]:
+                            refit_at, own_wheelbase) -> tuple[Hypothesis, float | None]:
     """A told distance without a told wheelbase: (the hypothesis, the wheelbase the two give).
 
     ``hypothesis`` was fitted with the distance found; its perspective gives the distance in
     wheelbases, so the told distance in mm gives the car's size, when that lies within
     ``perspective_size_range`` of the library's wheelbases. Otherwise (a distant camera, too
     little perspective) the told distance is read at the fitted car's own wheelbase
-    (``refit_at(distance_norm, hypothesis)``: a fit at that fixed distance), until the two agree
-    (``distance_passes``, ``distance_agreement``); the wheelbase is then the mix's (None).
+    (``own_wheelbase(hypothesis)``, mm: what the fit gives a car when none is told) by
+    ``refit_at(distance_norm, hypothesis)`` (a fit at that fixed distance), until the two agree
+    (``distance_passes``, ``distance_agreement``); the wheelbase is then the car's own (None).
     """
     if hypothesis.view.distance is not None:
         by_distance = float(distance_mm) * NORMALISED_WHEELBASE / hypothesis.view.distance
         lo, hi = np.min(library.template_wheelbase_mm), np.max(library.template_wheelbase_mm)
         if lo / policy.perspective_size_range <= by_distance <= hi * policy.perspective_size_range:
             return hypothesis, by_distance
-    read_at = mix_wheelbase_mm(hypothesis, library)
+    read_at = own_wheelbase(hypothesis)
     for _ in range(policy.distance_passes):
         hypothesis = refit_at(told_distance(distance_mm, read_at, library), hypothesis)
-        fitted = mix_wheelbase_mm(hypothesis, library)
+        fitted = own_wheelbase(hypothesis)
         if abs(fitted / read_at - 1.0) < policy.distance_agreement:
             break
         read_at = fitted

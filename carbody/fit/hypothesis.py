@@ -178,11 +178,12 @@ class Scorer:
         facing = self._facing.facing(view.azimuth, view.elevation, self.policy.visibility_margin_deg)[:, 0]
         return ~facing[self._rows]
 
-    def solve(self, view: View, kept: np.ndarray, cheap: bool = False, outline=None) -> MixSolution:
+    def solve(self, view: View, kept: np.ndarray, cheap: bool = False, outline=None, hubs=None) -> MixSolution:
         """The mix of the library that best explains the kept marks at ``view``, with its
         evidence in the marks' pixels (``evidence_px``); with ``outline``
         (:class:`~carbody.fit.outline.OutlineTargets`, the Gaussian-prior methods), the car's
-        outline in the photo too.
+        outline in the photo too, and with ``hubs`` (:class:`~carbody.fit.wheels.HubTargets`)
+        the wheels' hubs found in it.
 
         Raises:
             FitError: no car reproduces them at a positive image scale; AngleError: a pinhole
@@ -201,7 +202,7 @@ class Scorer:
             return sol
         sol = solve_gauss(self._cheap if cheap else self._model, load_topology().keypoint_point_indices, slots, uv,
                           view, lam, mixture=self.options.method == "mixture", rounds=1 if cheap else 2,
-                          outline=outline)
+                          outline=outline, hubs=hubs)
         charge = implausibility(sol.shape, self.library, self.wheelbase_mm)
         sol.evidence += charge
         sol.evidence_px += charge

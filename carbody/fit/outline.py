@@ -292,10 +292,11 @@ def _edge_along(uv: np.ndarray, normal: np.ndarray, outline: CarOutline, reach_p
     return line[i] + share * (line[i + 1] - line[i])
 
 
-def follow_outline(scorer, hypothesis, outline: CarOutline, to_photo: np.ndarray | None = None):
+def follow_outline(scorer, hypothesis, outline: CarOutline, to_photo: np.ndarray | None = None, hubs=None):
     """The hypothesis' car fitted to its marks and the car's outline together (module
     docstring): (the hypothesis with the new solution, :class:`OutlineFit`). Its score stays
-    the marks' (the outline does not choose the view)."""
+    the marks' (the outline does not choose the view). ``hubs``: the wheels' hubs found in the
+    photo (:class:`~carbody.fit.wheels.HubTargets`), kept in every solve."""
     policy = scorer.policy
     if not outline.usable:
         return hypothesis, OutlineFit(False, outline.reason, hull_ratio=outline.hull_ratio, seconds=outline.seconds)
@@ -309,7 +310,7 @@ def follow_outline(scorer, hypothesis, outline: CarOutline, to_photo: np.ndarray
             before = _median_px(matched, sol.shape, sol.view or h.view, sol.scale, sol.offset)
         if len(matched) < policy.outline_min_points:
             break
-        new = scorer.solve(h.view, h.kept, outline=matched)
+        new = scorer.solve(h.view, h.kept, outline=matched, hubs=hubs)
         new.evidence, new.evidence_px = sol.evidence, sol.evidence_px  # the marks' own: the view's score
         h = replace(h, solution=new, view=new.view or h.view)
     if h is hypothesis:

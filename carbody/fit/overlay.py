@@ -1,7 +1,8 @@
 """The overlay picture (paper Fig. 9–10): photo, annotated (red) and reprojected (green)
 keypoints, and the fitted wireframe projected with the refined camera; marks the fit cannot
 follow (the diagnostics' ``suspect``) ringed in magenta, and marks left out (the diagnostics'
-``rejected``) crossed out in magenta, joined to where the fitted car puts them."""
+``rejected``) crossed out in magenta, joined to where the fitted car puts them; the wheels'
+hubs found in the photo (:mod:`carbody.fit.wheels`) ringed in red, the fitted hubs in green."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -58,6 +59,15 @@ def draw_overlay(image: np.ndarray, result, labels: bool = True) -> np.ndarray:
                      (255, 0, 255), 2 * thick, cv2.LINE_AA)
         if labels:
             label(slot, (round(u) + 2 * r + 1, round(v) - 2 * r - 1), (255, 0, 255))
+    if result.wheels is not None and result.wheels.used:  # hubs found in the photo: red rings, fitted green
+        from carbody.fit.wheels import WHEELS, hub_points
+
+        fitted = result.project_points(hub_points(cp))
+        for hub in result.wheels.wheels:
+            (u, v), (pu, pv) = hub["found_px"], fitted[WHEELS.index(hub["wheel"])]
+            cv2.line(out, (round(u), round(v)), (round(pu), round(pv)), (0, 200, 255), thick, cv2.LINE_AA)
+            cv2.circle(out, (round(u), round(v)), 2 * r, (0, 0, 255), thick, cv2.LINE_AA)
+            cv2.circle(out, (round(pu), round(pv)), r, (0, 200, 0), thick, cv2.LINE_AA)
     return out
 
 

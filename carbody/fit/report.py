@@ -65,10 +65,12 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         # (:func:`project_with_camera`): the benchmarks draw regions and wheels with it
         "camera": camera_report(result),
         "wheelbase_mm": result.wheelbase_mm,
-        "wheelbase_from": result.wheelbase_from,  # "told", "camera distance" or "library mix"
-        # the wheelbase the fitted car's width and height in wheelbases give: a second opinion
-        # on its size (a note when it differs from the library mix's by WHEELBASE_DISAGREEMENT)
-        "wheelbase_by_proportions_mm": result.wheelbase_by_proportions_mm,
+        # "told", "camera distance", "proportions" (carbody.fit.size) or "library mix" (paper)
+        "wheelbase_from": result.wheelbase_from,
+        # what the car's proportions say of its size: the wheelbase and its spread (% one
+        # standard deviation); and the fitted mix's own wheelbase
+        "size": None if result.size is None else result.size.as_dict(),
+        "wheelbase_by_mix_mm": result.wheelbase_by_mix_mm,
         "keypoints_annotated": len(result.slots),
         "keypoints_mm": result.keypoints_mm(),
         "residual_px": res,
@@ -97,6 +99,9 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         # the car's outline in the photo fitted with the marks: used or why not, how many outline
         # points the last solve used, their median distance to the car's edge before and after
         "outline": None if result.outline is None else result.outline.as_dict(),
+        # the wheels' hubs found in the photo and fitted with the marks: each hub's pixel, score,
+        # robust weight, and the fitted hub's distance from it before and after
+        "wheels": None if result.wheels is None else result.wheels.as_dict(),
         "top_weights": result.top_weights(top),
         "template_mix": result.template_mix(),
         # the templates the fit mixed (fewer than 14 when some were excluded)
@@ -167,7 +172,7 @@ def project_with_camera(camera: dict, points_mm: np.ndarray) -> np.ndarray:
 def fit_notes(report: dict) -> list[str]:
     """The lines a person reads after a fit, from its report (:func:`build_report`): the fit's
     own expected error, then notes on marks left out or renamed, marks no car fits, a photo
-    taken from close by, a size the car's proportions doubt, marks the fitted car passes far
+    taken from close by, marks the fitted car passes far
     from, and marks the fitted geometry hides. ``carbody fit`` prints them; ``carbody
     reconstruct``'s summary carries them."""
     lines = []
@@ -182,8 +187,6 @@ def fit_notes(report: dict) -> list[str]:
                      "the wireframe is not to be trusted; check the marks' names and places, and the view given")
     if (report["orthographic_check"] or {}).get("closer_camera"):
         notes.append(closer_camera_line(report["orthographic_check"]))
-    if _size_uncertain(report):
-        notes.append(size_line(report["wheelbase_mm"], report["wheelbase_by_proportions_mm"]))
     if report["suspect_keypoints"]:
         notes.append("the fitted car passes far from " + ", ".join(
             f"{n} ({report['residual_px'][n]:.0f} px)" for n in report["suspect_keypoints"])
@@ -194,24 +197,13 @@ def fit_notes(report: dict) -> list[str]:
     return lines + ["note: " + n for n in notes]
 
 
-def _size_uncertain(report: dict) -> bool:
-    """The library mix gave the wheelbase and the car's proportions give one further off than
-    ``WHEELBASE_DISAGREEMENT``."""
-    from carbody.fit.shape_prior import WHEELBASE_DISAGREEMENT
-
-    own, other = report["wheelbase_mm"], report.get("wheelbase_by_proportions_mm")
-    return (report["wheelbase_from"] == "library mix" and other is not None
-            and max(own / other, other / own) > 1.0 + WHEELBASE_DISAGREEMENT)
-
-
-def size_line(wheelbase_mm: float, by_proportions_mm: float) -> str:
-    """One line for a person: the car's size is uncertain (the library mix's wheelbase and the
-    one its proportions give disagree)."""
-    more = by_proportions_mm > wheelbase_mm
-    pct = 100.0 * abs(by_proportions_mm / wheelbase_mm - 1.0)
-    return (f"the car's size is uncertain: its width and height in wheelbases suggest a wheelbase of "
-            f"{by_proportions_mm:.0f} mm, {pct:.0f} % {'longer' if more else 'shorter'} than the library mix's "
-            f"{wheelbase_mm:.0f} mm the wireframe is scaled to; give --wheelbase if it is known")
+def wheelbase_source(report: dict) -> str:
+    """Where the report's wheelbase came from, for a person: ``"told"``, ``"camera distance"``,
+    ``"library mix"``, or from the proportions with the estimate's spread."""
+    size = report.get("size")
+    if report["wheelbase_from"] == "proportions" and size is not None:
+        return f"from its proportions, ±{size['spread_pct']:.0f} %; give --wheelbase if known"
+    return report["wheelbase_from"]
 
 
 def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], renamed: dict[str, str],

@@ -14,6 +14,7 @@ from carbody.camera import View, apply_homography, project
 from carbody.errors import FitError
 from carbody.fit.keypoints_io import KeypointSlot
 from carbody.fit.diagnostics import FitDiagnostics
+from carbody.fit.size import SizeEstimate
 from carbody.fit.solve import MixSolution, keypoint_covariance
 from carbody.library import Library
 from carbody.tolerances import NORMALISED_WHEELBASE
@@ -42,13 +43,19 @@ class FitResult:
         camera_turn_deg: how far that turn swung the camera from the photo's optical axis to
             the car's centre, degrees (0: no turn).
         wheelbase_from: where ``wheelbase_mm`` came from: ``"told"``, ``"camera distance"``
-            (a told distance against the perspective's) or ``"library mix"`` (the fitted mix
-            of the templates' own wheelbases).
+            (a told distance against the perspective's), ``"proportions"`` (the fitted car's
+            proportions read against published cars: ``size``) or ``"library mix"`` (the
+            fitted mix of the templates' own wheelbases: the paper's solve).
+        size: what the car's proportions say of its size
+            (:class:`~carbody.fit.size.SizeEstimate`), or None (the paper's solve).
+        wheelbase_by_mix_mm: the fitted mix's own wheelbase (the templates', weighted), mm.
         solve_residual_px: (k,) the marks' residuals before the deformation (None: no
             deformation, see ``solution.residual_px``).
         joint_field: whether the solve had the local displacement field in its prior.
         outline: what the car's outline in the photo did to the fit
             (:class:`~carbody.fit.outline.OutlineFit`), or None when it was not asked.
+        wheels: what the wheels' hubs found in the photo did to the fit
+            (:class:`~carbody.fit.wheels.WheelsFit`), or None when it was not asked.
         diagnostics: what the fit says about the marks and the view
             (:class:`~carbody.fit.diagnostics.FitDiagnostics`: marks left out and why, names
             read exchanged, suspect marks, how well the car explains the marks, the search).
@@ -68,23 +75,17 @@ class FitResult:
     focal_px: float | None = None
     camera_turn_deg: float = 0.0
     wheelbase_from: str = "library mix"
+    size: SizeEstimate | None = None
+    wheelbase_by_mix_mm: float | None = None
     solve_residual_px: np.ndarray | None = field(default=None, repr=False)
     joint_field: bool = True
     outline: "OutlineFit | None" = None
+    wheels: "WheelsFit | None" = None
     diagnostics: FitDiagnostics = field(default_factory=FitDiagnostics)
 
     @property
     def mm_per_unit(self) -> float:
         return self.wheelbase_mm / NORMALISED_WHEELBASE
-
-    @property
-    def wheelbase_by_proportions_mm(self) -> float | None:
-        """The wheelbase (mm) the fitted car's width and height in wheelbases give
-        (:func:`~carbody.fit.shape_prior.proportions_wheelbase_mm`): a second opinion on the
-        car's size beside the library mix's own."""
-        from carbody.fit.shape_prior import proportions_wheelbase_mm
-
-        return proportions_wheelbase_mm(self.wireframe.control_points.ravel() / self.mm_per_unit, self.library)
 
     @property
     def camera_distance_mm(self) -> float | None:

@@ -32,7 +32,7 @@ def prepared(library: Library, method: str, wheelbase_mm: float | None = None, f
     if wheelbase_mm is None:
         key = (method,)
         model = _cached(library, method, lambda: ShapeModel.from_shapes(
-            library.S, idx, groups=library.template_index, keep=real_widths(library)))
+            library.S, idx, groups=library.template_index, keep=real_widths(library)), store=True)
     else:
         key = ("sized", float(wheelbase_mm))
         model = _cached(library, key, lambda: sized_shape_model(library, wheelbase_mm))
@@ -72,17 +72,32 @@ def _joint_field(library: Library) -> np.ndarray:
         keep = int(np.searchsorted(np.cumsum(sv**2) / np.sum(sv**2), JOINT_FIELD_ENERGY)) + 1
         return field @ Wt[:keep].T
 
-    return _cached(library, ("joint field", JOINT_FIELD_AMPLITUDE), build)
+    return _cached(library, ("joint field", JOINT_FIELD_AMPLITUDE), build, store=True)
 
 
-def _cached(library: Library, what, build):
-    """``build()``, once per library (keyed by its S array) and ``what``."""
+def _cached(library: Library, what, build, store: bool = False):
+    """``build()``, once per library (keyed by its S array) and ``what``; with ``store``, once
+    per library and code version, on disk (:mod:`carbody.fit.prepared_store`)."""
     key = (id(library.S), library.S.shape, what)
     if key not in _PREPARED:
         if len(_PREPARED) > 64:
             _PREPARED.clear()
-        _PREPARED[key] = (library.S, build())
+        _PREPARED[key] = (library.S, _stored(library, what, build) if store else build())
     return _PREPARED[key][1]
+
+
+def _stored(library: Library, what, build):
+    """``build()``, read from the disk store when it holds this library's ``what``."""
+    from carbody.fit.prepared_store import read_stored, stored_path, write_stored
+
+    path = stored_path(library.digest, what)
+    value = None if path is None else read_stored(path, what, {"ShapeModel": ShapeModel,
+                                                                "DeformationField": DeformationField})
+    if value is None:
+        value = build()
+        if path is not None:
+            write_stored(path, what, value)
+    return value
 
 
 #: Which coordinates (x, y, z) of a car the shape model told the wheelbase knows in mm rather
@@ -125,7 +140,7 @@ def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
         return ShapeModel.from_shapes(S, load_topology().keypoint_point_indices, groups=library.template_index,
                                       keep=real_widths(library))
 
-    model = _cached(library, "sized", build)
+    model = _cached(library, "sized", build, store=True)
     unit = np.where(in_mm, NORMALISED_WHEELBASE / wheelbase_mm, 1.0)
     mean = model.mean * unit
     size = keypoint_spread(mean.reshape(-1, 3)[load_topology().keypoint_point_indices])
@@ -182,47 +197,10 @@ def _excess(values: np.ndarray, low: np.ndarray, high: np.ndarray) -> float:
     return float(0.5 * np.sum(((below + above) / EXTENT_TOLERANCE) ** 2))
 
 
-#: A car whose proportions give a wheelbase this far (a fraction, either way) from the one the fit
-#: used, the library mix's own, has an uncertain size: the report says so in a note
-#: (BENCHMARKS.md, "Wheelbase the fit estimates").
-WHEELBASE_DISAGREEMENT = 0.10
-
-
-def proportions_wheelbase_mm(shape: np.ndarray, library: Library) -> float | None:
-    """The wheelbase (mm) a car's proportions give, from its (840,) normalised shape vector.
-
-    Cars differ far less in width and height than in wheelbase (1.7–2.0 m wide; 2.3–3.7 m
-    between the wheels), so a car narrow and low in wheelbases is a long one: a log-linear
-    least-squares fit of the templates' own wheelbases on their width and height in wheelbases
-    (the templates' own models, not the expansions), read at this car's. A second opinion
-    beside the library mix's own wheelbase (which a car unlike the library — the pickup, the
-    roadster — takes from the cars it is mixed of). None for a library of fewer than four
-    templates."""
-    coef = _cached(library, "wheelbase by proportions", lambda: _proportions_fit(library))
-    if coef is None:
-        return None
-    width, _, height = _extents(np.asarray(shape, dtype=float).reshape(-1, 1))[:, 0]
-    return float(np.exp(coef @ [1.0, np.log(width), np.log(height)]))
-
-
-def _proportions_fit(library: Library) -> np.ndarray | None:
-    """(3,) coefficients of log wheelbase_mm ~ 1 + log width + log height over the templates'
-    own models (widths and heights in wheelbases), or None for fewer than four."""
-    cols = np.flatnonzero(np.all(library.factors == 1.0, axis=1))
-    if len(cols) < 4:
-        return None
-    e = _extents(np.asarray(library.S[:, cols], dtype=float))
-    X = np.column_stack([np.ones(len(cols)), np.log(e[0]), np.log(e[2])])
-    coef, *_ = np.linalg.lstsq(X, np.log(library.model_wheelbase_mm[cols]), rcond=None)
-    return coef
-
-
 def prepared_field(library: Library) -> DeformationField:
     """The photo-matching deformation field around the library's mean model, built once."""
-    key = (id(library.S), library.S.shape, "field")
-    if key not in _PREPARED:
-        _PREPARED[key] = (library.S, DeformationField.around(library_mean(library), load_topology()))
-    return _PREPARED[key][1]
+    return _cached(library, "field", lambda: DeformationField.around(library_mean(library), load_topology()),
+                   store=True)
 
 
 def library_mean(library: Library) -> np.ndarray:

@@ -16,8 +16,9 @@ The algorithm, in :func:`fit_wireframe`:
    its twin's name — as discrete hypotheses of the same measure (:func:`~carbody.fit.robust.twin_exchanges`);
 4. correct the camera where that needs refits (:mod:`carbody.fit.fit_camera`): a told distance
    sizes the car, an off-centre car turns the camera toward it;
-5. given the photo, fit the car's outline in it with the marks at the view found
-   (:mod:`carbody.fit.outline`): the shape between the marks from what the photo shows there;
+5. given the photo, fit the wheels' hubs found in it (:mod:`carbody.fit.wheels`) and the car's
+   outline in it (:mod:`carbody.fit.outline`) with the marks at the view found: the shape
+   between the marks from what the photo shows there;
 6. build the car in mm, move it onto the marks (:mod:`carbody.fit.deform`) and say what the fit
    found (:func:`~carbody.fit.diagnostics.diagnose`).
 """
@@ -38,6 +39,8 @@ from carbody.fit.result import FitResult
 from carbody.fit.robust import explains_poorly, marks_noise, twin_exchanges
 from carbody.fit.search import distinct, refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
+from carbody.fit.size import SizeEstimate, estimate_size
+from carbody.fit.solve import joint_keypoint_covariance
 from carbody.fit.view_prior import ViewPrior
 from carbody.library import Library, check_library
 from carbody.tolerances import NORMALISED_WHEELBASE
@@ -62,12 +65,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         library: the model library (default the shipped one, :func:`carbody.library.default_library`).
         image_size: (width, height) px; keypoints off the image are refused.
         wheelbase_mm: the real wheelbase, if known (the Gaussian-prior methods then also know
-            the car's width and height in mm); default the fitted mix of the templates' own.
+            the car's width and height in mm); default from the fitted car's proportions
+            (:mod:`carbody.fit.size`; the paper's method: its mix's own).
         options: how to fit (:class:`FitOptions`); ``changes`` set its fields by keyword.
         name: the car's name (STEP product).
         photo: the photo ((h, w, 3) uint8 RGB) or the car already cut out of it
             (:class:`~carbody.fit.outline.CarOutline`): with ``options.outline``, the car's
-            outline is fitted with the marks (the Gaussian-prior methods).
+            outline is fitted with the marks, and with ``options.wheels`` (the photo itself)
+            the wheels' hubs (the Gaussian-prior methods).
     Raises:
         KeypointError: unknown, too few, NaN, off-image or degenerate keypoints.
         AngleError: a view outside 0–360° or rolled past ±90°.
@@ -118,7 +123,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             hypothesis, by_distance = size_from_told_distance(
                 hypothesis, told_mm, library, options.policy,
                 lambda distance, h: polish(scorer, scorer.hypothesis(replace(h.view, distance=distance)) or h,
-                                           free=("azimuth", "elevation")))
+                                           free=("azimuth", "elevation")),
+                lambda h: _own_wheelbase(scorer, h, library, options))
         photo_uv = hypothesis.marks.uv
         # (a told distance stays as the car was sized by it: the turned refits keep it)
         turn = turn_toward_car(hypothesis, photo_uv, plan, options.policy,
@@ -130,16 +136,23 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             if adapted is not scorer:
                 scorer, turn.hypothesis = adapted, polish(adapted, adapted.hypothesis(turn.hypothesis.view)
                                                           or turn.hypothesis, free=_polisher_free(options, plan))
+        wheels_fit = hubs = None
+        if isinstance(photo, np.ndarray) and options.wheels and options.method != "paper":
+            from carbody.fit.wheels import follow_wheels
+
+            turn.hypothesis, wheels_fit, hubs = follow_wheels(scorer, turn.hypothesis, photo, turn.to_photo)
         outline_fit = None
         if photo is not None and options.outline and options.method != "paper":
-            turn.hypothesis, outline_fit = _with_outline(scorer, turn, photo, uv, options)
+            turn.hypothesis, outline_fit = _with_outline(scorer, turn, photo, uv, options, hubs)
+        size = _size(scorer, turn.hypothesis, library, options)
+        size_by_mix = None if turn.hypothesis.solution.H is None else mix_wheelbase_mm(turn.hypothesis, library)
         wheelbase, source = (wheelbase_mm, "told") if wheelbase_mm is not None else \
             (by_distance, "camera distance") if by_distance is not None else \
+            (size.wheelbase_mm, "proportions") if size is not None else \
             (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
         result = _result(turn, photo_uv, prior, library, options, wheelbase, source, name)
-        result.outline = outline_fit
-        if options.refine and result.solution.posterior is not None:
-            result.solution.posterior.view_spread = view_spread(scorer, turn.hypothesis, ("azimuth", "elevation"))
+        result.outline, result.wheels = outline_fit, wheels_fit
+        result.size, result.wheelbase_by_mix_mm = size, size_by_mix
         if options.deforms:
             result = _deformed(result)
         closer = None
@@ -153,13 +166,14 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
     return result
 
 
-def _with_outline(scorer: Scorer, turn: Turn, photo, marks_uv: np.ndarray, options: FitOptions):
+def _with_outline(scorer: Scorer, turn: Turn, photo, marks_uv: np.ndarray, options: FitOptions, hubs=None):
     """The found hypothesis fitted to the car's outline in the photo too (cut out here unless
-    given cut out), and what the outline did (:func:`~carbody.fit.outline.follow_outline`)."""
+    given cut out), with the hubs found in it if any, and what the outline did
+    (:func:`~carbody.fit.outline.follow_outline`)."""
     from carbody.fit.outline import CarOutline, follow_outline, segment_car
 
     outline = photo if isinstance(photo, CarOutline) else segment_car(photo, marks_uv, options.policy)
-    return follow_outline(scorer, turn.hypothesis, outline, turn.to_photo)
+    return follow_outline(scorer, turn.hypothesis, outline, turn.to_photo, hubs)
 
 
 def _view_prior(view, options: FitOptions) -> ViewPrior:
@@ -265,6 +279,26 @@ def _search_summary(scanned: list[Hypothesis], best: Hypothesis, prior: ViewPrio
     return {"prior": prior.as_dict(), "views_scanned": views, "hypotheses": len(scanned), "best_scanned": rows,
             "margin_nats": float(top[1].score - top[0].score) if len(top) > 1 else None,
             "score_nats": float(best.score)}
+
+
+def _own_wheelbase(scorer: Scorer, hypothesis: Hypothesis, library: Library, options: FitOptions) -> float:
+    """The wheelbase the fit gives a car when none is told (mm): its proportions' (:func:`_size`),
+    or, for the paper's solve, its mix's own."""
+    size = _size(scorer, hypothesis, library, options)
+    return mix_wheelbase_mm(hypothesis, library) if size is None else size.wheelbase_mm
+
+
+def _size(scorer: Scorer, hypothesis: Hypothesis, library: Library, options: FitOptions) -> SizeEstimate | None:
+    """The wheelbase the fitted car's proportions give (:mod:`carbody.fit.size`), as sure as the
+    solve's posterior says (a searched view's own spread joins it here, for the expected errors
+    too); None for the paper's solve, which keeps its mix's own (SPEC)."""
+    sol = hypothesis.solution
+    if options.method == "paper" or sol.posterior is None:
+        return None
+    if options.refine and sol.posterior.view_spread is None:
+        sol.posterior.view_spread = view_spread(scorer, hypothesis, ("azimuth", "elevation"))
+    shape = sol.shape if sol.shape is not None else library.S[:, sol.support] @ sol.H[sol.support]
+    return estimate_size(shape, joint_keypoint_covariance(sol.posterior), options.policy.size_proportion_floor)
 
 
 def _result(turn: Turn, photo_uv: np.ndarray, prior: ViewPrior, library: Library, options: FitOptions,

@@ -376,11 +376,20 @@ def _feasible_start(A: np.ndarray, b: np.ndarray, P: np.ndarray) -> np.ndarray:
 def projection_rows(slots: list[KeypointSlot], view: View) -> np.ndarray:
     """(2k, 35, 3) float: row 2i (2i+1) maps the 35 keypoints to u (v, down) of slot i, scale 1."""
     rot = view_rotation(view)
-    kp = np.array([s.keypoint_id - 1 for s in slots])
-    sign = np.array([s.sign for s in slots])
-    M = np.zeros((2 * len(slots), 35, 3))
-    M[0::2][np.arange(len(slots)), kp] = rot[1] * sign
-    M[1::2][np.arange(len(slots)), kp] = -rot[2] * sign
+    kp, sign = _slot_arrays(slots)
+    return _rows(kp, rot[1] * sign, -rot[2] * sign)
+
+
+def _slot_arrays(slots: list[KeypointSlot]) -> tuple[np.ndarray, np.ndarray]:
+    """((k,) int keypoint row of each slot (its id − 1), (k, 3) float their signs)."""
+    return np.array([s.keypoint_id - 1 for s in slots]), np.array([s.sign for s in slots])
+
+
+def _rows(kp: np.ndarray, u_rows: np.ndarray, v_rows: np.ndarray) -> np.ndarray:
+    """(2k, 35, 3) float, zero but row 2i (2i+1) at keypoint kp[i]: u_rows[i] (v_rows[i])."""
+    M = np.zeros((2 * len(kp), 35, 3))
+    M[0::2][np.arange(len(kp)), kp] = u_rows
+    M[1::2][np.arange(len(kp)), kp] = v_rows
     return M
 
 
@@ -392,18 +401,12 @@ def camera_rows(slots: list[KeypointSlot], view: View, keypoints: np.ndarray | N
     Returns:
         (M (2k, 35, 3) float, const (2k,) float).
     """
-    M = projection_rows(slots, view)
-    const = np.zeros(len(M))
     if view.distance is None:
-        return M, const
-    sign = np.array([s.sign for s in slots])
-    kp = np.array([s.keypoint_id - 1 for s in slots])
-    grad, offset = point_camera(np.array([keypoints[s.keypoint_id - 1] * s.sign for s in slots]), view)
-    for axis in (0, 1):
-        M[axis::2] = 0.0
-        M[axis::2][np.arange(len(slots)), kp] = grad[:, axis] * sign
-        const[axis::2] = offset[:, axis]
-    return M, const
+        M = projection_rows(slots, view)
+        return M, np.zeros(len(M))
+    kp, sign = _slot_arrays(slots)
+    grad, offset = point_camera(keypoints[kp] * sign, view)
+    return _rows(kp, grad[:, 0] * sign, grad[:, 1] * sign), offset.ravel()
 
 
 def point_camera(points: np.ndarray, view: View) -> tuple[np.ndarray, np.ndarray]:
@@ -519,7 +522,7 @@ def solve_simplex(basis: KeypointBasis, slots: list[KeypointSlot], uv: np.ndarra
 def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[KeypointSlot],
                 uv: np.ndarray, view: View, prior_weight: float = DEFAULT_PRIOR_WEIGHT,
                 mixture: bool = False, rounds: int = PERSPECTIVE_ITERATIONS,
-                outline: "OutlineTargets | None" = None) -> MixSolution:
+                outline: "OutlineTargets | None" = None, hubs: "HubTargets | None" = None) -> MixSolution:
     """MAP shape under the library's Gaussian shape prior, with the image's scale and offset.
 
     Args:
@@ -534,6 +537,8 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
             (:class:`carbody.fit.outline.OutlineTargets`), pseudo-observations of their own
             noise: each pins its point's projection along the outline's normal. The image
             offset stays the marks' (the outline rows are centred on the marks' mean).
+        hubs: the wheels' hubs found in the photo (:class:`carbody.fit.wheels.HubTargets`),
+            pseudo-observations like the outline's, each with its own noise.
 
     A pinhole view (``view.distance``) is aimed at the car's centre and solved by Newton rounds:
     linearise the camera and set the aim at the current shape, solve, repeat
@@ -541,6 +546,8 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     """
     from dataclasses import replace
 
+    if hubs is not None and hubs.directions is not None:  # what only the hubs show (the ride height)
+        model = model.with_field(hubs.directions)
     q = model.basis.shape[1]
     mk = model.mean.reshape(-1, 3)[point_indices].ravel()
     Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
@@ -549,7 +556,7 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         if view.distance is not None:
             view = replace(view, aim=car_centre(shape))
         sol = _solve_gauss_linear(model, mk, Bk, point_indices, slots, uv, view, shape, prior_weight, mixture,
-                                  outline)
+                                  outline, hubs)
         shape = sol.shape
     sol.view = view
     return sol
@@ -564,18 +571,19 @@ def car_centre(shape: np.ndarray) -> tuple[float, float, float]:
 
 def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point_indices: np.ndarray,
                         slots: list[KeypointSlot], uv: np.ndarray, view: View, guess: np.ndarray,
-                        prior_weight: float, mixture: bool, outline=None) -> MixSolution:
+                        prior_weight: float, mixture: bool, outline=None, hubs=None) -> MixSolution:
     """:func:`solve_gauss` with the camera linearised at the shape ``guess`` (840,)."""
     M, const, Mc, cc, z, b, rho = _centred(slots, uv, view, guess.reshape(-1, 3)[point_indices])
     AB = (Mc @ Bk) / model.size
     am = (Mc @ mk + cc) / model.size
     marks_rows = len(b)
-    if outline is not None and len(outline):
-        L, c, target = _outline_rows(outline, M, const, z, view, guess, point_indices)
-        w = 1.0 / outline.noise_ratio
-        AB = np.vstack([AB, w * (L @ model.basis) / model.size])
-        am = np.concatenate([am, w * (L @ model.mean + c) / model.size])
-        b = np.concatenate([b, w * target / rho])
+    for pseudo in (outline, hubs):
+        if pseudo is not None and len(pseudo):
+            L, c, target = _outline_rows(pseudo, M, const, z, view, guess, point_indices)
+            w = 1.0 / np.broadcast_to(np.asarray(pseudo.noise_ratio, dtype=float), len(target))
+            AB = np.vstack([AB, w[:, None] * (L @ model.basis) / model.size])
+            am = np.concatenate([am, w * (L @ model.mean + c) / model.size])
+            b = np.concatenate([b, w * target / rho])
     if mixture and model.group_means is not None:
         # One Gaussian per template centre, shared covariance; the posterior mean of the mixture.
         deltas, gs, _, nle, (V, e) = _map_coefficients(am + model.group_means @ AB.T, AB, b, prior_weight)
@@ -611,10 +619,11 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
 
 def _outline_rows(outline, M: np.ndarray, const: np.ndarray, z: np.ndarray, view: View, guess: np.ndarray,
                   point_indices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The outline's pseudo-observations as rows of the centred solve: each matched point's
-    projection along its normal, less the marks' mean projection (the image offset is the
-    marks'), as a linear function L·shape + c (scale 1) of the (840,) shape vector, and its
-    target n·(edge − the marks' mean), px.
+    """The outline's (or the hubs') pseudo-observations as rows of the centred solve: each
+    matched point's projection along its normal, less the marks' mean projection (the image
+    offset is the marks'), as a linear function L·shape + c (scale 1) of the (840,) shape
+    vector, and its target n·(edge − the marks' mean), px. A point's ``weights`` are (n, 280),
+    or (n, 280, 3) for a point whose coordinates come from different control points (a hub).
 
     Args:
         M, const: the marks' camera rows (:func:`camera_rows`); z: (k, 2) their pixels.
@@ -623,7 +632,8 @@ def _outline_rows(outline, M: np.ndarray, const: np.ndarray, z: np.ndarray, view
     grad, offset = point_camera(outline.points(guess), view)  # (n, 2, 3), (n, 2)
     n = outline.normals
     along = np.einsum("na,nac->nc", n, grad) * outline.mirror  # (n, 3): d(n·uv)/d(control point)
-    L = (outline.weights[:, :, None] * along[:, None, :]).reshape(len(n), -1)
+    weights = outline.weights if outline.weights.ndim == 3 else outline.weights[:, :, None]
+    L = (weights * along[:, None, :]).reshape(len(n), -1)
     marks_mean = np.stack([M[0::2].mean(axis=0), M[1::2].mean(axis=0)])  # (2, 35, 3)
     centre = np.einsum("na,akc->nkc", n, marks_mean)
     rows = L.reshape(len(n), -1, 3)
@@ -650,6 +660,15 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     uncertainty joins it (``view_spread``); the photo-matching deformation that follows does
     not. BENCHMARKS.md measures how it compares with the leave-one-out errors.
     """
+    cov = joint_keypoint_covariance(posterior)
+    n = len(cov) // 3
+    return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
+
+
+def joint_keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
+    """(3·35, 3·35) float: the posterior covariance of all the keypoints' coordinates together
+    (x1, y1, z1, x2, …), normalised units²: what :func:`keypoint_covariance` gives per keypoint,
+    with the keypoints' covariances with each other (a length's spread is that of a difference)."""
     Bk = posterior.keypoint_basis
     BV = Bk @ posterior.V
     shrink = posterior.g ** 2 * posterior.e / (posterior.lam + posterior.g ** 2 * posterior.e)
@@ -659,8 +678,7 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     cov *= posterior.inflation
     if posterior.view_spread is not None:  # already at the marks' own noise level
         cov += posterior.view_spread.T @ posterior.view_spread
-    n = len(Bk) // 3
-    return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
+    return cov
 
 
 _SCALE_GRID = np.geomspace(0.1, 10.0, 21)  # the scale search's first grid, × the unregularised scale
@@ -697,9 +715,15 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     ABV = AB @ V
     y1, y2 = ABV.T @ b, ams @ ABV  # (q,), (T, q)
 
-    def coeffs(g):  # g: (T, n) -> (T, n, q)
+    def coeffs(g):  # g: (T, n) -> (T, n, q): g·(y1 − g·y2) / (g²·e + λ), in place (the search's bulk)
         g = g[..., None]
-        return g * (y1 - g * y2[:, None]) / (g * g * e + lam)
+        c = g * y2[:, None]
+        np.subtract(y1, c, out=c)
+        c *= g
+        d = g * g * e
+        d += lam
+        c /= d
+        return c
 
     # ABV's columns are orthogonal with squared norms e, so the cost needs only q-vectors:
     # ‖g·(am + ABV·c) − b‖² = g²(am·am + 2 y2·c + Σ e c²) − 2g(am·b + y1·c) + b·b.

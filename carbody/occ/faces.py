@@ -68,10 +68,11 @@ def bezier_face(net: np.ndarray, splits: dict[str, np.ndarray] | None = None):
     from OCP.TopoDS import TopoDS_Face, TopoDS_Wire
 
     net = np.asarray(net, float)
+    rows = net.tolist()
     arr = TColgp_Array2OfPnt(1, 4, 1, 4)
     for i in range(4):
         for j in range(4):
-            arr.SetValue(i + 1, j + 1, gp_Pnt(*map(float, net[i, j])))
+            arr.SetValue(i + 1, j + 1, gp_Pnt(*rows[i][j]))
     surface = Geom_BezierSurface(arr)
     builder = BRep_Builder()
     face = TopoDS_Face()
@@ -80,15 +81,18 @@ def bezier_face(net: np.ndarray, splits: dict[str, np.ndarray] | None = None):
     builder.MakeWire(wire)
 
     pieces = boundary_pieces(net, splits or {})
-    vertices = [BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, poles[0]))).Vertex() for poles, _, _ in pieces]
+    vertices = [BRepBuilderAPI_MakeVertex(gp_Pnt(*poles[0].tolist())).Vertex() for poles, _, _ in pieces]
     for k, (poles, uv0, uv1) in enumerate(pieces):
         cp = TColgp_Array1OfPnt(1, 4)
-        for i in range(4):
-            cp.SetValue(i + 1, gp_Pnt(*map(float, poles[i])))
+        for i, pole in enumerate(poles.tolist()):
+            cp.SetValue(i + 1, gp_Pnt(*pole))
         uv = TColgp_Array1OfPnt2d(1, 2)
         uv.SetValue(1, gp_Pnt2d(*uv0))
         uv.SetValue(2, gp_Pnt2d(*uv1))
-        edge = BRepBuilderAPI_MakeEdge(Geom_BezierCurve(cp), vertices[k], vertices[(k + 1) % len(pieces)]).Edge()
+        # the vertices are the sub-arc's end poles (its neighbours' to rounding): parameters 0 and 1,
+        # what BRepLib_MakeEdge's projection finds for a vertex within tolerance of an end, told
+        edge = BRepBuilderAPI_MakeEdge(Geom_BezierCurve(cp), vertices[k], vertices[(k + 1) % len(pieces)],
+                                       0.0, 1.0).Edge()
         builder.UpdateEdge(edge, Geom2d_BezierCurve(uv), face, BUILD_TOL_MM)
         builder.Add(wire, edge)
     wire.Closed(True)

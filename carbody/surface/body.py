@@ -146,14 +146,17 @@ def region_layout(outline: RegionOutline, wheelbase_mm: float,
 
 
 def region_patches(control_points: np.ndarray, topology: Topology | None = None,
-                   timings: dict | None = None) -> tuple[list[RegionNet], list[RegionSkeleton | None]]:
+                   timings: dict | None = None, outlines: list[RegionOutline] | None = None
+                   ) -> tuple[list[RegionNet], list[RegionSkeleton | None]]:
     """Control nets and Bezier patches (left half) of every region (:func:`region_layout`);
-    numpy only. The skeleton of a region laid out by arc length is None."""
+    numpy only. The skeleton of a region laid out by arc length is None. ``outlines``: the
+    wireframe's :func:`region_outlines`, when the caller has them already."""
     topo = topology or load_topology()
     wb = wheelbase_of(control_points, topo)
     timings = {} if timings is None else timings
     timings.update(skeleton_s=0.0, control_nets_s=0.0)
-    done = [region_layout(o, wb, timings) for o in region_outlines(control_points, topo)]
+    outlines = region_outlines(control_points, topo) if outlines is None else outlines
+    done = [region_layout(o, wb, timings) for o in outlines]
     return [n for n, _ in done], [s for _, s in done]
 
 
@@ -184,7 +187,9 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
     topo = topology or load_topology()
     cp = wireframe.control_points
     timings: dict[str, float] = {}
-    nets, sk = region_patches(cp, topo, timings)
+    wheelbase_of(cp, topo)  # (a wireframe without a wheelbase is refused before any region is read)
+    outlines = region_outlines(cp, topo)
+    nets, sk = region_patches(cp, topo, timings, outlines)
 
     t = time.perf_counter()
     symmetric = {c.index for c in topo.curves
@@ -203,7 +208,7 @@ def build_body(wireframe, topology: Topology | None = None, check: bool = True) 
     from carbody.surface.folds import fold_message, region_folds
 
     t = time.perf_counter()
-    folds = {f.region: f for f in region_folds(cp, region_outlines(cp, topo), {n.name: n.faces for n in nets}, topo)}
+    folds = {f.region: f for f in region_folds(cp, outlines, {n.name: n.faces for n in nets}, topo)}
     timings["folds_s"] = time.perf_counter() - t
     report["folds"] = [fold_message(f) for f in folds.values() if f.folds]
     for n, s in zip(nets, sk):

@@ -384,11 +384,18 @@ def refine_turns(outline: RegionOutline, samples: BoundarySamples | None, ribs: 
     correspondence (kept strictly between the neighbouring ribs, and inside the projected region
     when there are ``samples``; a region laid out by arc length has none)."""
     ribs, kinds = [tuple(r) for r in ribs], list(kinds)
+    turns: dict[tuple[int, float, float], float] = {}  # each face side's turn, measured once
+
+    def turn_of(side: int, s0: float, s1: float) -> float:
+        if (side, s0, s1) not in turns:
+            turns[side, s0, s1] = _turn(outline.side_b if side else outline.side_a, s0, s1)
+        return turns[side, s0, s1]
+
     for _ in range(4 * len(ribs)):
         worst, where = MAX_SIDE_TURN_DEG, None
         for k in range(len(ribs) - 1):
             (a0, b0), (a1, b1) = ribs[k], ribs[k + 1]
-            for side, turn in ((0, _turn(outline.side_a, a0, a1)), (1, _turn(outline.side_b, b0, b1))):
+            for side, turn in ((0, turn_of(0, a0, a1)), (1, turn_of(1, b0, b1))):
                 if turn > worst:
                     worst, where = turn, (k, side)
         if where is None:

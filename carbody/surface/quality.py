@@ -13,6 +13,7 @@ wireframe curve overlap on a common curve-parameter interval.
 """
 from __future__ import annotations
 
+import functools
 from collections import defaultdict
 
 import numpy as np
@@ -23,13 +24,21 @@ _SAMPLES = 11
 
 
 def _bern(t: np.ndarray) -> np.ndarray:
-    t = np.asarray(t, float)[:, None]
-    return np.hstack([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3])
+    t = np.asarray(t, float)[..., None]
+    return np.concatenate([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3], axis=-1)
 
 
 def _dbern(t: np.ndarray) -> np.ndarray:
-    t = np.asarray(t, float)[:, None]
-    return np.hstack([-3 * (1 - t) ** 2, 3 * (1 - t) ** 2 - 6 * t * (1 - t), 6 * t * (1 - t) - 3 * t**2, 3 * t**2])
+    t = np.asarray(t, float)[..., None]
+    return np.concatenate([-3 * (1 - t) ** 2, 3 * (1 - t) ** 2 - 6 * t * (1 - t), 6 * t * (1 - t) - 3 * t**2,
+                           3 * t**2], axis=-1)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of (..., 3) float arrays: the same products and differences, without its
+    per-call overhead (the figures here take a few thousand cross products per body)."""
+    a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def surface_points(net: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -41,7 +50,7 @@ def surface_normals(net: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray
     """Unit normals S_u x S_v (m, 3) at (u_k, v_k)."""
     su = np.einsum("mi,mj,ijd->md", _dbern(u), _bern(v), net)
     sv = np.einsum("mi,mj,ijd->md", _bern(u), _dbern(v), net)
-    n = np.cross(su, sv)
+    n = _cross(su, sv)
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
@@ -51,33 +60,63 @@ def _side_uv(side: str, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _angle(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
-    return np.degrees(np.arccos(np.clip(np.abs((n1 * n2).sum(axis=1)), -1, 1)))
+    return np.degrees(np.arccos(np.clip(np.abs((n1 * n2).sum(axis=-1)), -1, 1)))
+
+
+def _seam_figures(nets_f: np.ndarray, uf: np.ndarray, vf: np.ndarray, nets_g: np.ndarray, ug: np.ndarray,
+                  vg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(P,) largest G0 gap (mm) and G1 angle (deg) between faces f and g of P pairs at the same
+    places: :func:`surface_points` and :func:`surface_normals` of every pair at once.
+
+    Args:
+        nets_f, nets_g: (P, 4, 4, 3) nets; uf, vf, ug, vg: (P, m) their parameters.
+    """
+    def points_normals(nets, u, v):
+        bu, bv, du, dv = _bern(u), _bern(v), _dbern(u), _dbern(v)
+        points = np.einsum("pmi,pmj,pijd->pmd", bu, bv, nets)
+        n = _cross(np.einsum("pmi,pmj,pijd->pmd", du, bv, nets), np.einsum("pmi,pmj,pijd->pmd", bu, dv, nets))
+        return points, n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-300)
+
+    pf, nf = points_normals(nets_f, uf, vf)
+    pg, ng = points_normals(nets_g, ug, vg)
+    return np.linalg.norm(pf - pg, axis=2).max(axis=1), _angle(nf, ng).max(axis=1)
 
 
 def scaled_jacobian(net: np.ndarray) -> float:
     """Smallest scaled Jacobian over the corners of the 3 x 3 control quads of a net (4, 4, 3)."""
-    n_ref = np.cross(net[3, 0] + net[3, 3] - net[0, 0] - net[0, 3], net[0, 3] + net[3, 3] - net[0, 0] - net[3, 0])
+    n_ref = _cross(net[3, 0] + net[3, 3] - net[0, 0] - net[0, 3], net[0, 3] + net[3, 3] - net[0, 0] - net[3, 0])
     n_ref /= np.linalg.norm(n_ref)
     q00, q10, q01, q11 = net[:-1, :-1], net[1:, :-1], net[:-1, 1:], net[1:, 1:]
     corners = [(q00, q10, q01), (q10, q11, q00), (q11, q01, q10), (q01, q00, q11)]
     worst = np.inf
     for c, a, b in corners:  # edges from corner c to a and to b, counter-clockwise
         ea, eb = a - c, b - c
-        cr = np.cross(ea, eb) @ n_ref
+        cr = _cross(ea, eb) @ n_ref
         la, lb = np.linalg.norm(ea, axis=-1), np.linalg.norm(eb, axis=-1)
         sj = cr / np.maximum(la * lb, 1e-300)
         worst = min(worst, float(sj.min()))
     return worst
 
 
+@functools.lru_cache(maxsize=4)
+def _grid_bases(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The Bernstein bases and their derivatives at an n x n grid's u and v, (n², 4) each: the
+    same for every face (read only)."""
+    t = np.linspace(0, 1, n)
+    u, v = (a.ravel() for a in np.meshgrid(t, t, indexing="ij"))
+    bases = _bern(u), _bern(v), _dbern(u), _dbern(v)
+    for b in bases:
+        b.flags.writeable = False
+    return bases
+
+
 def surface_jacobian(net: np.ndarray, n: int = 9) -> float:
     """Smallest scaled Jacobian of the surface itself on an n x n grid: (S_u x S_v)·n̄ / (|S_u||S_v|),
     n̄ the face's mean normal; negative where the parametrisation folds over."""
-    t = np.linspace(0, 1, n)
-    u, v = (a.ravel() for a in np.meshgrid(t, t, indexing="ij"))
-    su = np.einsum("mi,mj,ijd->md", _dbern(u), _bern(v), net)
-    sv = np.einsum("mi,mj,ijd->md", _bern(u), _dbern(v), net)
-    cr = np.cross(su, sv)
+    bu, bv, du, dv = _grid_bases(n)
+    su = np.einsum("mi,mj,ijd->md", du, bv, net)
+    sv = np.einsum("mi,mj,ijd->md", bu, dv, net)
+    cr = _cross(su, sv)
     mean = cr.sum(axis=0)
     mean /= np.linalg.norm(mean)
     lengths = np.linalg.norm(su, axis=1) * np.linalg.norm(sv, axis=1)
@@ -86,15 +125,14 @@ def surface_jacobian(net: np.ndarray, n: int = 9) -> float:
 
 def inner_seams(faces: list[FacePatch]) -> np.ndarray:
     """(len(faces) - 1, 2): max G0 gap (mm) and max G1 angle (deg) across each inner rib."""
-    out = []
-    p = np.linspace(0, 1, _SAMPLES)
-    for f, g in zip(faces[:-1], faces[1:]):
-        uf, vf = _side_uv("v1", p)
-        ug, vg = _side_uv("v0", p)
-        gap = np.linalg.norm(surface_points(f.net, uf, vf) - surface_points(g.net, ug, vg), axis=1).max()
-        ang = _angle(surface_normals(f.net, uf, vf), surface_normals(g.net, ug, vg)).max()
-        out.append((gap, ang))
-    return np.array(out).reshape(-1, 2)
+    if len(faces) < 2:
+        return np.zeros((0, 2))
+    pairs = len(faces) - 1
+    p = np.tile(np.linspace(0, 1, _SAMPLES), (pairs, 1))
+    nets = np.array([f.net for f in faces])
+    uf, vf = _side_uv("v1", p)
+    ug, vg = _side_uv("v0", p)
+    return np.stack(_seam_figures(nets[:-1], uf, vf, nets[1:], ug, vg), axis=1)
 
 
 def seam_quality(faces: list[FacePatch]) -> dict[tuple[str, str], tuple[float, float]]:
@@ -104,7 +142,7 @@ def seam_quality(faces: list[FacePatch]) -> dict[tuple[str, str], tuple[float, f
         for side, ref in f.sides.items():
             if ref is not None:
                 on_curve[ref.key].append((f, side))
-    out: dict[tuple[str, str], tuple[float, float]] = {}
+    keys, nets, uv = [], ([], []), ([], [], [], [])
     for items in on_curve.values():
         for a in range(len(items)):
             for b in range(a + 1, len(items)):
@@ -117,15 +155,21 @@ def seam_quality(faces: list[FacePatch]) -> dict[tuple[str, str], tuple[float, f
                 if hi - lo <= 1e-9:
                     continue
                 t = np.linspace(lo, hi, _SAMPLES)
-                pf = (t - rf.t0) / (rf.t1 - rf.t0)
-                pg = (t - rg.t0) / (rg.t1 - rg.t0)
-                uf, vf = _side_uv(sf, pf)
-                ug, vg = _side_uv(sg, pg)
-                gap = float(np.linalg.norm(surface_points(f.net, uf, vf) - surface_points(g.net, ug, vg), axis=1).max())
-                ang = float(_angle(surface_normals(f.net, uf, vf), surface_normals(g.net, ug, vg)).max())
-                key = tuple(sorted((f.region, g.region + ("_right" if g.mirror != f.mirror else ""))))
-                old = out.get(key, (0.0, 0.0))
-                out[key] = (max(old[0], gap), max(old[1], ang))
+                for where, (face, side, ref) in zip((0, 2), ((f, sf, rf), (g, sg, rg))):
+                    u, v = _side_uv(side, (t - ref.t0) / (ref.t1 - ref.t0))
+                    uv[where].append(u)
+                    uv[where + 1].append(v)
+                nets[0].append(f.net)
+                nets[1].append(g.net)
+                keys.append(tuple(sorted((f.region, g.region + ("_right" if g.mirror != f.mirror else "")))))
+    out: dict[tuple[str, str], tuple[float, float]] = {}
+    if not keys:
+        return out
+    gaps, angles = _seam_figures(np.array(nets[0]), np.array(uv[0]), np.array(uv[1]), np.array(nets[1]),
+                                 np.array(uv[2]), np.array(uv[3]))
+    for key, gap, ang in zip(keys, gaps.tolist(), angles.tolist()):
+        old = out.get(key, (0.0, 0.0))
+        out[key] = (max(old[0], gap), max(old[1], ang))
     return out
 
 

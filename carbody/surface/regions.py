@@ -33,7 +33,7 @@ DENSE = 48
 def bezier_points(poles: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Points of a cubic Bezier. poles (4, d); t (n,) -> (n, d)."""
     t = np.asarray(t, float)[:, None]
-    b = np.hstack([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3])
+    b = np.concatenate([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3], axis=1)
     return b @ poles
 
 
@@ -41,7 +41,7 @@ def bezier_derivs(poles: np.ndarray, t: np.ndarray) -> np.ndarray:
     """First derivatives d/dt of a cubic Bezier. poles (4, d); t (n,) -> (n, d)."""
     t = np.asarray(t, float)[:, None]
     d = 3 * np.diff(poles, axis=0)
-    b = np.hstack([(1 - t) ** 2, 2 * (1 - t) * t, t**2])
+    b = np.concatenate([(1 - t) ** 2, 2 * (1 - t) * t, t**2], axis=1)
     return b @ d
 
 

@@ -92,9 +92,9 @@ class Reconstruct(_Command):
             if not ok:
                 _status(f"carbody: {result}", error=True)
                 return
-            _status("carbody: bringing the car in (the body is surfaced from its curves) ...")
+            _status("carbody: bringing the car in ...")
             try:
-                _, _, report = core.import_reconstruction(doc, image, out, wire_json=result)
+                _, _, report = core.import_reconstruction(doc, image, out, **result)
             except core.CarbodyWorkbenchError as exc:
                 _status(f"carbody: {exc}", error=True)
                 return

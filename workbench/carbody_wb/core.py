@@ -40,9 +40,10 @@ VENV_SCRIPTS = (os.path.join("bin", "carbody"), os.path.join("Scripts", "carbody
 def carbody_command(workbench_dir=None, path=None):
     """The carbody command as an argument list, the first of: ``$CARBODY_COMMAND``; the
     preference (``CarbodyCommand``, set with the **carbody command…** button); the ``carbody`` of
-    a virtual environment beside the workbench (:func:`venv_carbody`: the checkout it was linked
-    or copied from); ``carbody`` on ``path`` (default ``$PATH``); else ``["carbody"]`` (running
-    it then says in one line that it is not found).
+    the virtual environment the workbench came from (:func:`venv_carbody`: the one it was
+    installed in, or the checkout it was linked or copied from); ``carbody`` on ``path``
+    (default ``$PATH``); else ``["carbody"]`` (running it then says in one line that it is not
+    found).
 
     Args:
         workbench_dir: where the venv is looked for (default: the workbench's real folder).
@@ -56,12 +57,15 @@ def carbody_command(workbench_dir=None, path=None):
 
 
 def venv_carbody(start=None):
-    """The ``carbody`` program of a virtual environment beside the workbench: ``.venv/bin`` or
-    ``venv/bin`` (``Scripts`` on Windows) in ``start`` (default :data:`WORKBENCH_DIR`; a link is
-    followed to where it points) or any folder above it; None if none."""
+    """The ``carbody`` program of the virtual environment the workbench came from: the one it
+    lies in (installed with ``pip install carbody``: a folder above it holds ``pyvenv.cfg``), or
+    a ``.venv`` or ``venv`` beside it (a checkout set up by ``make``). Looked for in ``bin``
+    (``Scripts`` on Windows) of ``start`` (default :data:`WORKBENCH_DIR`; a link is followed to
+    where it points) and of every folder above it; None if none."""
     here = os.path.realpath(start or WORKBENCH_DIR)
     while True:
-        for venv in VENV_NAMES:
+        own = [""] if os.path.isfile(os.path.join(here, "pyvenv.cfg")) else []
+        for venv in own + list(VENV_NAMES):
             for script in VENV_SCRIPTS:
                 candidate = os.path.join(here, venv, script)
                 if os.path.isfile(candidate) and os.access(candidate, os.X_OK):
@@ -256,7 +260,7 @@ def reconstruct(doc, image, keypoints, out_dir, view=None, wheelbase_mm=None, co
     return import_reconstruction(doc, image, out_dir, command)
 
 
-def import_reconstruction(doc, image, out_dir, command=None, wire_json=None):
+def import_reconstruction(doc, image, out_dir, command=None, wire_json=None, surfaced=None):
     """A ``carbody reconstruct`` folder into ``doc``: the car as parametric objects
     (:func:`import_car`) and the photo lined up with the fitted camera.
 
@@ -264,6 +268,8 @@ def import_reconstruction(doc, image, out_dir, command=None, wire_json=None):
         image: the photo (None: no photo plane).
         wire_json: the folder's wireframe as wireframe JSON data, already read
             (:class:`ReconstructJob` reads it; default: read it now).
+        surfaced: its body as ``carbody surface`` makes it, already made (:func:`read_surfaced`;
+            :class:`ReconstructJob` makes it; default: the body's first recompute makes it).
     Returns:
         (wireframe group, body group, report dict).
     """
@@ -272,12 +278,28 @@ def import_reconstruction(doc, image, out_dir, command=None, wire_json=None):
     else:
         from carbody_wb import model
 
-        wire, body = model.add_car(doc, wire_json)
+        wire, body = model.add_car(doc, wire_json, surfaced)
     with open(os.path.join(out_dir, "report.json")) as f:
         report = json.load(f)
     if image:
         line_up_photo(doc, image, report)
     return wire, body, report
+
+
+def surface_args(wire_json_path, body_path, report_path):
+    """The arguments of ``carbody surface``: a wireframe file to the sewn body (STEP) and its
+    report (each face's region and colour, the folds)."""
+    return ["surface", os.path.abspath(wire_json_path), "-o", os.path.abspath(body_path),
+            "--report", os.path.abspath(report_path)]
+
+
+def read_surfaced(body_path, report_path):
+    """What ``carbody surface`` wrote (:func:`surface_args`) as (shape, report dict)."""
+    with open(report_path) as f:
+        report = json.load(f)
+    shape = Part.Shape()
+    shape.read(os.path.abspath(body_path))
+    return shape, report
 
 
 def wireframe_args(wireframe_path, json_path):
@@ -369,10 +391,12 @@ class CarbodyProcess:
 
 
 class ReconstructJob:
-    """``carbody reconstruct`` and then its wireframe read back (``carbody wireframe``, to
-    wireframe JSON), one after the other in :class:`CarbodyProcess` es, FreeCAD responsive
-    throughout; then ``on_done(ok, result)`` with ``result`` the wireframe JSON data (for
-    :func:`import_reconstruction`) or the one-line error.
+    """``carbody reconstruct``, then its wireframe read back (``carbody wireframe``, to wireframe
+    JSON), then that wireframe surfaced as the parametric body's recompute surfaces it
+    (``carbody surface``), one after the other in :class:`CarbodyProcess` es, FreeCAD responsive
+    throughout; then ``on_done(ok, result)`` with ``result`` a dict of ``wire_json`` (the
+    wireframe JSON data) and ``surfaced`` (the body, :func:`read_surfaced`), the arguments of
+    :func:`import_reconstruction` that spare it any wait; or the one-line error.
 
     Args:
         on_progress: called with a line a person can read as each stage starts.
@@ -384,8 +408,11 @@ class ReconstructJob:
         self._command, self._on_progress, self._on_done = command, on_progress, on_done
         self._tmp = tempfile.TemporaryDirectory(prefix="carbody-fc-")
         self._wire_json = os.path.join(self._tmp.name, "wire.json")
+        self._body = (os.path.join(self._tmp.name, "body.step"), os.path.join(self._tmp.name, "body.json"))
         self._steps = [("reconstruct", reconstruct_args(image, keypoints, out_dir, view, wheelbase_mm)),
-                       ("wireframe", wireframe_args(os.path.join(out_dir, "wireframe.step"), self._wire_json))]
+                       ("reading the wireframe back", wireframe_args(os.path.join(out_dir, "wireframe.step"),
+                                                                     self._wire_json)),
+                       ("surfacing the editable body", surface_args(self._wire_json, *self._body))]
         self.current = None
 
     @property
@@ -412,14 +439,15 @@ class ReconstructJob:
             try:
                 with open(self._wire_json) as f:
                     wire_json = json.load(f)
-            except (OSError, ValueError) as exc:
-                self._finish(False, f"carbody wrote no wireframe JSON: {exc}")
+                surfaced = read_surfaced(*self._body)
+            except (OSError, ValueError, RuntimeError) as exc:  # (FreeCAD's reader errors are RuntimeErrors)
+                self._finish(False, f"carbody wrote no wireframe or body to bring in: {exc}")
                 return
-            self._finish(True, wire_json)
+            self._finish(True, {"wire_json": wire_json, "surfaced": surfaced})
             return
         key, args = self._steps.pop(0)
         if key != "reconstruct":
-            self._say(f"reading the {key} back")
+            self._say(key)
 
         def line(text):
             if text.startswith(STAGE_PREFIX):

@@ -202,38 +202,23 @@ class CarBody:
         obj.Curves, obj.CarName = curves, car_name
 
     def execute(self, obj):
-        wire = {"format": "carbody-wireframe", "name": obj.CarName, "units": "mm",
-                "curves": [{"name": c.CurveName, "poles": [[p.x, p.y, p.z] for p in c.Poles]}
-                           for c in obj.Curves if c.Side != "right"]}
+        if getattr(self, "prebuilt", False):  # surfaced already (in the background): see add_car
+            self.prebuilt = False
+            return
+        wire = body_wireframe_json(obj)
         with tempfile.TemporaryDirectory(prefix="carbody-fc-") as tmp:
             paths = {k: os.path.join(tmp, k) for k in ("wire.json", "body.step", "report.json")}
             with open(paths["wire.json"], "w") as f:
                 json.dump(wire, f)
             try:
-                core.run_carbody(["surface", paths["wire.json"], "-o", paths["body.step"],
-                                  "--report", paths["report.json"]])
+                core.run_carbody(core.surface_args(paths["wire.json"], paths["body.step"], paths["report.json"]))
             except core.CarbodyWorkbenchError as exc:
                 line = str(exc).split(": error: ", 1)[-1]
                 obj.Status = line
                 FreeCAD.Console.PrintError(f"carbody: {obj.Label}: {line}\n")
                 raise RuntimeError(line) from None
-            with open(paths["report.json"]) as f:
-                report = json.load(f)
-            shape = Part.Shape()
-            shape.read(paths["body.step"])
-        faces = report["faces"]
-        order = core.match_faces(shape.Faces, faces)
-        obj.FaceRegions = [faces[k]["region"] for k in order]
-        obj.FaceColours = [tuple(faces[k]["colour"]) for k in order]
-        obj.Folds = report["folds"]
-        shell = shape.Shells[0] if len(shape.Shells) == 1 else shape
-        obj.Shape = shell
-        if report["folds"]:
-            obj.Status = report["folds"][0]
-            for line in report["folds"]:
-                FreeCAD.Console.PrintError(f"carbody: {line}\n")
-        else:
-            obj.Status = f"valid sewn shell, {len(shape.Faces)} faces" if shell.isValid() else "shell not valid"
+            shape, report = core.read_surfaced(paths["body.step"], paths["report.json"])
+        apply_surfaced(obj, shape, report)
 
     def __getstate__(self):
         return None
@@ -242,6 +227,31 @@ class CarBody:
         return None
 
     dumps, loads = __getstate__, __setstate__
+
+
+def body_wireframe_json(obj):
+    """The wireframe JSON data (left half) a CarBody is surfaced from: its curves' poles now."""
+    return {"format": "carbody-wireframe", "name": obj.CarName, "units": "mm",
+            "curves": [{"name": c.CurveName, "poles": [[p.x, p.y, p.z] for p in c.Poles]}
+                       for c in obj.Curves if c.Side != "right"]}
+
+
+def apply_surfaced(obj, shape, report):
+    """Give a CarBody the shell ``carbody surface`` made (``shape``, read from its STEP file) and
+    what its report says: each face's region and colour (matched by position), the folds."""
+    faces = report["faces"]
+    order = core.match_faces(shape.Faces, faces)
+    obj.FaceRegions = [faces[k]["region"] for k in order]
+    obj.FaceColours = [tuple(faces[k]["colour"]) for k in order]
+    obj.Folds = report["folds"]
+    shell = shape.Shells[0] if len(shape.Shells) == 1 else shape
+    obj.Shape = shell
+    if report["folds"]:
+        obj.Status = report["folds"][0]
+        for line in report["folds"]:
+            FreeCAD.Console.PrintError(f"carbody: {line}\n")
+    else:
+        obj.Status = f"valid sewn shell, {len(shape.Faces)} faces" if shell.isValid() else "shell not valid"
 
 
 class CarRegion:
@@ -316,12 +326,17 @@ if FreeCAD.GuiUp:
                 QtCore.QTimer.singleShot(0, lambda: self.paint(obj))
 
 
-def add_car(doc, wire_json):
+def add_car(doc, wire_json, surfaced=None):
     """Bring a wireframe (carbody's wireframe JSON data, both halves) into ``doc`` as parametric
     objects: a ``Wireframe`` group of CarbodyCurve objects, a ``Body`` group with the CarBody
-    (labelled ``BodyShell``) and one CarRegion per region, and recompute (the body's recompute
-    runs ``carbody surface``, found as :func:`carbody_wb.core.carbody_command` says).
+    (labelled ``BodyShell``) and one CarRegion per region, and recompute.
 
+    Args:
+        surfaced: the body ``carbody surface`` already made of this wireframe, as
+            :func:`carbody_wb.core.read_surfaced` gives it (shape, report): the Reconstruct
+            command surfaces it in the background, so that the import does not wait for it.
+            Without it the body's first recompute runs ``carbody surface`` (found as
+            :func:`carbody_wb.core.carbody_command` says) and waits.
     Returns:
         (wireframe group, body group).
     """
@@ -343,6 +358,9 @@ def add_car(doc, wire_json):
     body.Label = "BodyShell"
     if FreeCAD.GuiUp:
         ViewProviderCarBody(body.ViewObject)
+    if surfaced is not None:  # (after the view provider: it paints the faces as they are set)
+        apply_surfaced(body, *surfaced)
+        body.Proxy.prebuilt = True
     body_group.addObject(body)
     doc.recompute()
     if body.Shape.isNull():

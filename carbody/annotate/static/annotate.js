@@ -171,6 +171,8 @@ function inside(uv) { const [w, h] = app.setup.image_size; return uv[0] >= 0 && 
 
 canvas.addEventListener("mousedown", (e) => {
   if (!app.state) return;
+  // back on the photo, the keys are the page's again (not the list's or the folder box's)
+  if (document.activeElement && document.activeElement !== document.body) document.activeElement.blur();
   const xy = eventXY(e);
   app.press = { xy, at: xy, grab: e.button === 0 ? hit(xy) : null, moved: false, view: { ...app.view } };
   e.preventDefault();
@@ -413,7 +415,11 @@ function renderSide() {
   $("ask-desc").textContent = k ? `#${k.id}: ${k.description}` : "Save, or Reconstruct.";
   let hint = "";
   if (c && c in s.marks) hint = "marked: drag it to move it, Backspace removes it";
-  else if (c && fit.ok && fit.ghosts[c]) hint = `click it on the photo, or Enter to accept the ghost (±${fit.ghosts[c].sd_px.toFixed(0)} px), or drag the ghost`;
+  else if (c && fit.ok && fit.ghosts[c]) {
+    const g = fit.ghosts[c];
+    hint = `click it on the photo, or Enter to accept the ghost (±${g.sd_px.toFixed(0)} px), or drag the ghost; ` +
+      "H if the photo does not show it";
+  }
   else if (c) hint = "click it on the photo, H if the photo does not show it";
   $("ask-hint").textContent = hint;
   $("accept").disabled = !(c && fit.ok && fit.ghosts[c]);
@@ -511,7 +517,7 @@ async function start() {
   $("next").addEventListener("click", () => step(+1));
   $("hide").addEventListener("click", hideCurrent);
   $("accept").addEventListener("click", acceptCurrent);
-  $("pick").addEventListener("change", (e) => { app.current = e.target.value; render(); });
+  $("pick").addEventListener("change", (e) => { app.current = e.target.value; e.target.blur(); render(); });
   const state = await api("/api/state");
   $("coco").checked = state.coco_output !== null;
   app.photo.onload = () => { resize(); fitPhoto(); app.ready = true; };

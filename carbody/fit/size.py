@@ -1,0 +1,152 @@
+"""The car's size when no wheelbase is told: its proportions read against published cars.
+
+A photo shows a car's shape, not its size. But cars differ less in width and height than in
+length and wheelbase, and a car's proportions go with its size: a city car is wide and tall
+for its wheelbase, a saloon or a pickup long and low. So the fitted car's length, width and
+height *in wheelbases* say how long its wheelbase is likely to be.
+
+The table of published dimensions (``carbody/data/car_dimensions.csv``: length, width,
+height and wheelbase of cars of every class, :func:`published_cars`) gives a Gaussian over the
+logarithms of (wheelbase, width, height, length). The fitted proportions are an observation
+of three differences of those logarithms, as uncertain as the fit's posterior says (never
+less than :attr:`~carbody.policy.FitPolicy.size_proportion_floor`: the posterior knows nothing
+of how real cars differ from the library, nor of the table's own rounding). The wheelbase's
+posterior follows by Gaussian conditioning (:func:`estimate_size`): a car whose proportions
+the photo pins is sized by them; one it does not (a level front view shows no length) is
+sized more by what cars usually are.
+
+This replaces the library mix's own wheelbase (the templates' wheelbases weighted by the mix,
+SPEC's default) for the Gaussian-prior methods: on real photos that was 8.6 % off at the
+median (BENCHMARKS.md, "Real photos"), because a mix chosen for its shape takes its size from
+whichever templates share that shape, however large they are.
+"""
+from __future__ import annotations
+
+import csv
+import functools
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+
+from carbody.errors import FitError
+from carbody.tolerances import NORMALISED_WHEELBASE
+from carbody.topology import load_topology
+from carbody.wireframe import sample_curves
+
+#: Published heights stand on the ground, the wireframe on its wheel centres: the tyre's
+#: radius in wheelbases joins the fitted height (the templates' tyres: 0.11–0.14, mean 0.12),
+#: its spread the height's uncertainty.
+TYRE_RADIUS_NORM, TYRE_RADIUS_SPREAD_NORM = 120.0, 10.0
+
+#: The table's columns, in the order of the Gaussian's axes.
+DIMENSIONS = ("wheelbase_mm", "width_mm", "height_mm", "length_mm")
+
+#: The fitted proportions as differences of the log dimensions: log(L/wb), log(W/wb), log(H/wb).
+_RATIOS = np.array([[-1.0, 0.0, 0.0, 1.0], [-1.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class PublishedCars:
+    """The table of published dimensions.
+
+    Attributes:
+        names, classes: per car.
+        dimensions: (N, 4) float, mm: wheelbase, width, height, length (:data:`DIMENSIONS`).
+    """
+
+    names: tuple[str, ...]
+    classes: tuple[str, ...]
+    dimensions: np.ndarray
+
+    @functools.cached_property
+    def log_gaussian(self) -> tuple[np.ndarray, np.ndarray]:
+        """((4,) mean, (4, 4) covariance) of the log dimensions."""
+        logs = np.log(self.dimensions)
+        return logs.mean(axis=0), np.cov(logs.T)
+
+
+@functools.lru_cache(maxsize=1)
+def published_cars() -> PublishedCars:
+    """The shipped table (``carbody/data/car_dimensions.csv``), read once."""
+    text = resources.files("carbody.data").joinpath("car_dimensions.csv").read_text(encoding="utf-8")
+    rows = list(csv.DictReader(text.splitlines()))
+    return PublishedCars(tuple(r["car"] for r in rows), tuple(r["class"] for r in rows),
+                         np.array([[float(r[d]) for d in DIMENSIONS] for r in rows]))
+
+
+@dataclass(frozen=True)
+class SizeEstimate:
+    """The wheelbase a fitted car's proportions give.
+
+    Attributes:
+        wheelbase_mm: the most likely wheelbase.
+        spread: one standard deviation of it, as a fraction (of its logarithm).
+        prior_spread: the same for a car of unknown proportions (the table's own spread).
+        proportions: {"length", "width", "height"}: the fitted car's, in wheelbases.
+        proportion_spreads: the same keys: each proportion's uncertainty used, as a fraction.
+    """
+
+    wheelbase_mm: float
+    spread: float
+    prior_spread: float
+    proportions: dict[str, float]
+    proportion_spreads: dict[str, float]
+
+    def as_dict(self) -> dict:
+        return {"wheelbase_mm": self.wheelbase_mm, "spread_pct": 100.0 * self.spread,
+                "prior_spread_pct": 100.0 * self.prior_spread,
+                "proportions": self.proportions,
+                "proportion_spreads_pct": {k: 100.0 * v for k, v in self.proportion_spreads.items()}}
+
+
+def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, floor: float,
+                  cars: PublishedCars | None = None) -> SizeEstimate:
+    """The wheelbase of a fitted car from its proportions (module docstring).
+
+    Args:
+        shape: (840,) or (280, 3) float, the fitted car's control points, normalised units.
+        keypoint_covariance: (105, 105) float, normalised units²: the fit's posterior over the
+            35 keypoints' coordinates (:func:`carbody.fit.solve.joint_keypoint_covariance`),
+            or None (each proportion then as uncertain as ``floor``).
+        floor: the least uncertainty of each proportion, a fraction.
+        cars: the table (default the shipped one).
+    Raises:
+        FitError: a shape with no length, width or height.
+    """
+    cars = cars or published_cars()
+    points = np.asarray(shape, dtype=float).reshape(-1, 3)
+    samples = sample_curves(points, 64).reshape(-1, 3)
+    extents = np.array([np.ptp(samples[:, 1]), 2.0 * samples[:, 0].max(),
+                        samples[:, 2].max() + TYRE_RADIUS_NORM])
+    if not (np.all(np.isfinite(extents)) and np.all(extents > 0)):
+        raise FitError("the fitted car has no length, width or height to size it by")
+    variance = np.full(3, floor ** 2)
+    variance[2] += (TYRE_RADIUS_SPREAD_NORM / extents[2]) ** 2
+    if keypoint_covariance is not None:
+        J = _extent_rows(points)
+        variance += np.clip(np.diagonal(J @ keypoint_covariance @ J.T), 0.0, None) / extents ** 2
+    observed = np.log(extents / NORMALISED_WHEELBASE)
+    mean, cov = cars.log_gaussian
+    gain = cov @ _RATIOS.T @ np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + np.diag(variance))
+    post_mean = mean + gain @ (observed - _RATIOS @ mean)
+    post_cov = cov - gain @ _RATIOS @ cov
+    keys = ("length", "width", "height")
+    spread, prior_spread = float(np.sqrt(post_cov[0, 0])), float(np.sqrt(cov[0, 0]))
+    return SizeEstimate(wheelbase_mm=float(np.exp(post_mean[0])), spread=spread, prior_spread=prior_spread,
+                        proportions={k: float(v) for k, v in zip(keys, extents / NORMALISED_WHEELBASE)},
+                        proportion_spreads={k: float(v) for k, v in zip(keys, np.sqrt(variance))})
+
+
+def _extent_rows(points: np.ndarray) -> np.ndarray:
+    """(3, 105): the length, width and height as differences of keypoint coordinates — the
+    keypoints furthest front and back, out and up — whose posterior spreads stand for the
+    extents' (the extents themselves are of curve samples between keypoints)."""
+    idx = load_topology().keypoint_point_indices
+    kp = points[idx]
+    J = np.zeros((3, 3 * len(idx)))
+    J[0, 3 * int(np.argmax(kp[:, 1])) + 1] += 1.0
+    J[0, 3 * int(np.argmin(kp[:, 1])) + 1] -= 1.0
+    J[1, 3 * int(np.argmax(kp[:, 0]))] = 2.0
+    J[2, 3 * int(np.argmax(kp[:, 2])) + 2] = 1.0
+    return J

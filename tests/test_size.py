@@ -1,0 +1,97 @@
+"""The car's size from its proportions (carbody.fit.size): what the table of published cars can
+tell, and how the fit's posterior says which proportions a view shows."""
+import numpy as np
+import pytest
+
+from carbody.camera import View
+from carbody.errors import FitError
+from carbody.fit import fit_wireframe
+from carbody.fit.size import PublishedCars, estimate_size, published_cars
+from tests.test_fit_solve import _left_out, _observe
+
+FLOOR = 0.03
+
+
+def _without(cars: PublishedCars, *names: str) -> PublishedCars:
+    keep = [i for i, n in enumerate(cars.names) if n not in names]
+    assert len(keep) == len(cars.names) - len(names), names
+    return PublishedCars(tuple(cars.names[i] for i in keep), tuple(cars.classes[i] for i in keep),
+                         cars.dimensions[keep])
+
+
+def test_the_table_is_real_cars():
+    """Every row a car's dimensions (mm): wheelbase shorter than the length, no car wider than
+    2.1 m or shorter than 2.5 m; every class of the library among them."""
+    cars = published_cars()
+    wb, width, height, length = cars.dimensions.T
+    assert len(cars.names) >= 150 and len(set(cars.names)) == len(cars.names)
+    assert np.all((wb < length) & (length > 2500) & (width < 2100) & (height > 1000))
+    assert {"city", "sedan", "hatchback", "suv", "crossover", "pickup", "compact_mpv", "van", "sports"} <= set(cars.classes)
+
+
+def test_each_car_of_the_table_is_sized_by_its_proportions_from_the_others():
+    """Left out of the table, a car's exact proportions (length, width, height in wheelbases)
+    give its wheelbase within 5 % at the median, and the estimate's own spread covers the truth
+    as a Gaussian's should (within two spreads for 95 %)."""
+    cars = published_cars()
+    errors, spreads = [], []
+    for name, (wb, width, height, length) in zip(cars.names, cars.dimensions):
+        # a box of the car's proportions, in wheelbases, stands in for its wireframe
+        shape = _box(length / wb, width / wb, height / wb)
+        est = estimate_size(shape, None, FLOOR, _without(cars, name))
+        errors.append(np.log(est.wheelbase_mm / wb))
+        spreads.append(est.spread)
+    errors, spreads = np.abs(errors), np.array(spreads)
+    assert np.median(errors) < 0.05
+    assert np.mean(errors <= 2 * spreads) >= 0.95
+    assert np.all(spreads < 0.8 * np.sqrt(published_cars().log_gaussian[1][0, 0]))  # the proportions told something
+
+
+def test_a_city_car_is_sized_shorter_than_a_pickup(library):
+    """The library's own MINI and Hilux, their rows taken out of the table: each within 10 % of
+    its published wheelbase, the MINI's the shorter."""
+    cars = _without(published_cars(), "MINI Hatch 3-door F56", "Toyota Hilux AN120 Double Cab")
+    sizes = {}
+    for name in ("MINI Hatch 3-door F56", "Toyota Hilux AN120 Double Cab"):
+        t = library.template_names.index(name)
+        est = estimate_size(library.points(library.original(t)), None, FLOOR, cars)
+        assert abs(est.wheelbase_mm / library.template_wheelbase_mm[t] - 1) < 0.10
+        sizes[name] = est.wheelbase_mm
+    assert sizes["MINI Hatch 3-door F56"] < sizes["Toyota Hilux AN120 Double Cab"] - 300
+
+
+@pytest.mark.parametrize("azimuth, unseen, seen", [(0, "length", "width"), (90, "width", "length")])
+def test_the_view_says_which_proportion_it_shows(library, azimuth, unseen, seen):
+    """A level front view shows the car's width and not its length; a side view the reverse.
+    The fit's posterior says so, and the size reads the proportion the view shows the more."""
+    t, loo, truth = _left_out(library, "Toyota Camry XV70")
+    slots, uv = _observe(truth, View(azimuth, 0), noise=1.0)
+    res = fit_wireframe({s.name: p for s, p in zip(slots, uv)}, View(azimuth, 0), loo)
+    spreads = res.size.proportion_spreads
+    assert spreads[unseen] > 1.3 * spreads[seen] and spreads[seen] < 0.06
+    assert res.wheelbase_from == "proportions" and res.wheelbase_mm == pytest.approx(res.size.wheelbase_mm)
+    assert abs(res.wheelbase_mm / library.template_wheelbase_mm[t] - 1) < 2 * res.size.spread
+
+
+def test_a_car_with_no_extent_is_refused():
+    with pytest.raises(FitError, match="no length, width or height"):
+        estimate_size(np.zeros(840), None, FLOOR)
+
+
+def _box(length: float, width: float, height: float) -> np.ndarray:
+    """(840,) a shape vector (normalised units) whose curves span a box of these proportions
+    (in wheelbases): every curve a straight segment between two of the box's corners; the
+    height measured from the ground, a tyre's radius below the wheel centres."""
+    from carbody.fit.size import TYRE_RADIUS_NORM
+
+    lo = np.array([0.0, -0.3 * length * 1000, -TYRE_RADIUS_NORM + 50])
+    hi = np.array([width * 500, 0.7 * length * 1000, height * 1000 - TYRE_RADIUS_NORM])
+    t = np.linspace(0.0, 1.0, 4)[:, None]
+    rng = np.random.default_rng(0)
+    curves = []
+    for k in range(70):
+        a, b = (np.where(rng.random(3) < 0.5, lo, hi) for _ in range(2))
+        if k < 8:  # the box's own corners, so its extents are exact
+            a, b = lo, hi
+        curves.append(a + t * (b - a))
+    return np.concatenate(curves).ravel()
