@@ -22,10 +22,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--photo-like", action="store_true",
                    help="photo-like renders: a camera at a person's height 3-15 m from the car, ground and "
                         "contact shadow, environment-lit paint and glass, plates, street backdrops, camera "
-                        "artefacts, framed as a photo's car box is cropped, lamps, grilles and mirrors, tone")
+                        "artefacts, framed as a photo's car box is cropped, lamps, grilles and mirrors")
     p.add_argument("--photo-off", default="", metavar="PARTS",
                    help="with --photo-like, switch these parts off (ablation; comma-separated: camera, "
-                        "ground, environment, backdrop, artefacts, plates, framing, details, sharp, tone, plate_colours)")
+                        "ground, environment, backdrop, artefacts, plates, framing, details, sharp)")
     p.add_argument("--photo-fraction", type=float, default=1.0,
                    help="with --photo-like, the share of photo-like images (the rest classic; default 1)")
     p.add_argument("--blends", type=int, default=0,
