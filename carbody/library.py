@@ -274,15 +274,21 @@ def _read_cache(path: Path) -> Library | None:
 
 
 def _write_cache(path: Path, lib: Library) -> None:
-    """Cache ``lib`` at ``path`` (written whole, then renamed into place, so a reader never sees
-    half of it); a cache that cannot be written (a read-only or full disk, no home folder) is
-    skipped: the next run builds the library again."""
+    """Cache ``lib`` at ``path`` (:func:`write_cache_file`): the next run that cannot read it
+    builds the library again."""
+    write_cache_file(path, S=lib.S, template_names=np.array(lib.template_names), template_index=lib.template_index,
+                     factors=lib.factors, template_wheelbase_mm=lib.template_wheelbase_mm,
+                     template_classes=np.array(lib.template_classes))
+
+
+def write_cache_file(path: Path, **arrays: np.ndarray) -> None:
+    """Write a cache's arrays to ``path`` (.npz) whole, then rename it into place, so a reader
+    never sees half of it; a cache that cannot be written (a read-only or full disk, no home
+    folder) is skipped."""
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(tmp, S=lib.S, template_names=np.array(lib.template_names), template_index=lib.template_index,
-                 factors=lib.factors, template_wheelbase_mm=lib.template_wheelbase_mm,
-                 template_classes=np.array(lib.template_classes))
+        np.savez(tmp, **arrays)
         os.replace(tmp, path)
     except OSError:
         try:

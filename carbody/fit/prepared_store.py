@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
-import os
 from pathlib import Path
 
 import numpy as np
@@ -82,8 +81,10 @@ def read_stored(path: Path, what, kinds: dict[str, type]):
 
 
 def write_stored(path: Path, what, value) -> None:
-    """Store ``value`` at ``path``: written whole, then renamed into place (a reader never sees
-    half of it); skipped when it cannot be written."""
+    """Store ``value`` at ``path`` (:func:`carbody.library.write_cache_file`: whole or not at
+    all)."""
+    from carbody.library import write_cache_file
+
     if isinstance(value, np.ndarray):
         arrays = {"_kind": np.array("ndarray"), "value": value}
     else:
@@ -93,13 +94,4 @@ def write_stored(path: Path, what, value) -> None:
             if v is not None:
                 arrays[f.name] = np.asarray(v)
     arrays["_what"] = np.array(repr(what))
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(tmp, **arrays)
-        os.replace(tmp, path)
-    except OSError:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass
+    write_cache_file(path, **arrays)
