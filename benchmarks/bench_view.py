@@ -12,6 +12,7 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
     python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
     python benchmarks/bench_view.py --speed [--weights W.pt|W.npz] [--repeats 200]
     python benchmarks/bench_view.py --photo-ablation [--epochs 40] [--count 4800] [--workdir DIR] [--only "B;C"]
+                                    [--width 0.5] [--train-seed 1] [--measure LABEL=W.pt] [--table]
 
 ``--real`` classifies the 27 real photos of ``../shared/realphotos`` (measurement only: nothing
 is copied or trained on them) against the views estimated by eye in their keypoint files (±10°):
@@ -435,7 +436,8 @@ def main_real(args) -> int:
 
 #: Rows of the photo-like ablation, cumulative: (key, label, PhotoLook settings, input px, renders of
 #: row). Every row renders the same bodies, split, classes and count (seed 0), 80 % photo-like and
-#: 20 % classic, and trains the same schedule; E trains on D's renders.
+#: 20 % classic, and trains the same schedule; E trains on D's renders. (Row B as measured in
+#: docs/view_classifier.md was drawn with tone on as well; the table flags such a row.)
 OFF = dict(framing=False, details=False, sharp=False, tone=False)
 PHOTO_ROWS = (
     ("A", "earlier photo-like renders (first pass of issue 26)", OFF, 64, "A"),
@@ -499,7 +501,11 @@ def main_photo_ablation(args) -> None:
     work = Path(args.workdir or tempfile.mkdtemp(prefix="carbody-view-photo-ablation-"))
     root = Path(args.photos) if args.photos else REAL_PHOTOS
     photos = real_photo_set(root) if (root / "keypoints").is_dir() else []
+    if args.measure:
+        measure_listed(work, args.measure, photos, args)
     only = [x.strip() for x in args.only.split(";")] if args.only else [k for k, *_ in PHOTO_ROWS]
+    if args.table or args.measure:
+        only = []
     for key, label, look, size, renders in PHOTO_ROWS:
         if key not in only:
             continue
@@ -518,32 +524,122 @@ def main_photo_ablation(args) -> None:
         row |= {"train_s": meta["history"]["seconds"], "val_acc": meta["history"]["val_acc"][-1]}
         result.write_text(json.dumps(row, indent=1))
         print(key, label, row, flush=True)
-    print_photo_ablation(work, args.epochs, args.width, args.train_seed)
+    print_photo_ablation(work, args.epochs, args.width, args.count, args.blends)
 
 
 def photo_row_tag(epochs: int, size: int, width: float, seed: int = 0) -> str:
     return f"e{epochs}_{size}px" + ("" if width == 1.0 else f"_w{width:g}") + ("" if seed == 0 else f"_s{seed}")
 
 
-def print_photo_ablation(work: Path, epochs: int, width: float = 1.0, seed: int = 0) -> None:
+#: Columns of the photo ablation table: (heading, result keys, decimals).
+PHOTO_COLUMNS = (
+    ("real car's box ±15° / ±30° / front-rear / left-right", ("box_within15", "box_within30", "box_front_rear",
+                                                             "box_left_right"), 2),
+    ("marks' box ±15° / ±30°", ("marks_within15", "marks_within30"), 2),
+    ("full photo ±15° / ±30°", ("full_within15", "full_within30"), 2),
+    ("classic renders top-1 / ±15° / front-rear", ("classic_top1", "classic_within15",
+                                                   "classic_front_rear_confusions"), 3),
+    ("photo-like renders top-1 / ±15°", ("photo_top1", "photo_within15"), 3),
+)
+
+
+def photo_cells(r: dict) -> str:
+    """The table cells of one result (or mean of results)."""
+    return " | ".join(" / ".join(f"{r[k]:.{d}f}" for k in keys) for _, keys, d in PHOTO_COLUMNS)
+
+
+def row_results(work: Path, key: str, epochs: int, size: int, width: float) -> list[dict]:
+    """A row's results, one per training seed found in ``work/<key>`` (seed 0 first)."""
+    import json
+    import re
+
+    base = photo_row_tag(epochs, size, width)
+    found = []
+    for f in (work / key).glob(f"result_{base}*.json"):
+        m = re.fullmatch(re.escape(f"result_{base}") + r"(?:_s(\d+))?\.json", f.name)
+        if m:
+            found.append((int(m.group(1) or 0), json.loads(f.read_text())))
+    return [r for _, r in sorted(found, key=lambda x: x[0])]
+
+
+def mean_result(results: list[dict]) -> dict:
+    return {k: float(np.mean([r[k] for r in results])) for k in results[0]}
+
+
+def renders_differ(work: Path, renders: str, look: dict) -> list[str]:
+    """The photo-like switches with which a row's renders were drawn (their ``dataset.json``) other
+    than the row says, as ``"+ tone"`` / ``"- details"``; a switch the file lacks was drawn off
+    (it did not exist yet). Empty when they agree or the renders are not there."""
+    import json
+    from dataclasses import asdict
+
+    from carbody.view.photo import PhotoLook
+
+    f = work / renders / "dataset.json"
+    if not f.exists():
+        return []
+    drawn = json.loads(f.read_text()).get("variation", {}).get("photo") or {}
+    meant = asdict(PhotoLook(**{"tone": True} | look))     # as photo_row_dataset draws the row
+    return [("+ " if drawn.get(k, False) else "- ") + k for k, v in meant.items() if bool(drawn.get(k, False)) != v]
+
+
+def print_photo_ablation(work: Path, epochs: int, width: float = 1.0, count: int = 4800, blends: int = 40) -> None:
+    """The rows' table (each cell the mean over the training seeds run; a row whose renders were
+    drawn otherwise than it says is flagged), the seed-to-seed spread of the rows run with two
+    seeds or more, and the weights measured with ``--measure``."""
     import json
 
-    print(f"photo-like ablation ({work}): per row 4800 renders (3 bodies a template, 40 blends, 80 % photo-like), "
-          f"MobileNetV2 width {width:g}, {epochs} epochs, 1 thread; real photos: 27, views by eye ±10°; renders: "
-          "480 classic and 480 photo-like of the 7 held-out cars (seed 1234)")
-    print("| training renders | real car's box ±15° / ±30° / front-rear / left-right | marks' box ±15° / ±30° "
-          "| full photo ±15° / ±30° | classic renders top-1 / ±15° / front-rear | photo-like renders top-1 / ±15° "
-          "| train min |\n|---|---|---|---|---|---|---|")
-    for key, label, _, size, _ in PHOTO_ROWS:
-        f = work / key / f"result_{photo_row_tag(epochs, size, width, seed)}.json"
-        if not f.exists():
+    heads = " | ".join(h for h, _, _ in PHOTO_COLUMNS)
+    print(f"photo-like ablation ({work}): per row {count} renders (3 bodies a template, {blends} blends, "
+          "80 % photo-like), "
+          f"MobileNetV2 width {width:g}, {epochs} epochs, 1 thread; each cell the mean over the training seeds run; "
+          "real photos: 27, views by eye ±10° (one photo = 0.037); renders: 480 classic and 480 photo-like of the "
+          "7 held-out cars (seed 1234)")
+    print(f"| training renders | seeds | {heads} | train min |\n|---|---|" + "---|" * len(PHOTO_COLUMNS) + "---|")
+    spread = []
+    for key, label, look, size, renders in PHOTO_ROWS:
+        results = row_results(work, key, epochs, size, width)
+        if not results:
             continue
-        r = json.loads(f.read_text())
-        print(f"| {label} | {r['box_within15']:.2f} / {r['box_within30']:.2f} / {r['box_front_rear']:.2f} / "
-              f"{r['box_left_right']:.2f} | {r['marks_within15']:.2f} / {r['marks_within30']:.2f} | "
-              f"{r['full_within15']:.2f} / {r['full_within30']:.2f} | {r['classic_top1']:.3f} / "
-              f"{r['classic_within15']:.3f} / {r['classic_front_rear_confusions']:.3f} | {r['photo_top1']:.3f} / "
-              f"{r['photo_within15']:.3f} | {r['train_s'] / 60:.0f} |")
+        differ = renders_differ(work, renders, look)
+        if differ:
+            label += f" (**renders drawn with {', '.join(differ)}**)"
+        print(f"| {key}: {label} | {len(results)} | {photo_cells(mean_result(results))} | "
+              f"{np.mean([r['train_s'] for r in results]) / 60:.0f} |")
+        if len(results) > 1:
+            spread.append((key, {k: float(np.ptp([r[k] for r in results])) for k in results[0]}))
+    if spread:
+        print("\nseed to seed (the same renders trained with each training seed): largest minus smallest")
+        print(f"| row | {heads} |\n|---|" + "---|" * len(PHOTO_COLUMNS))
+        for key, r in spread:
+            print(f"| {key} | {photo_cells(r)} |")
+    measured = sorted((work / "measured").glob("*.json"))
+    if measured:
+        print("\nweights measured on the same photos and renders (--measure)")
+        print(f"| weights | {heads} |\n|---|" + "---|" * len(PHOTO_COLUMNS))
+        for f in measured:
+            r = json.loads(f.read_text())
+            print(f"| {r.get('label', f.stem)} | {photo_cells(r)} |")
+
+
+def measure_listed(work: Path, specs: list[str], photos: list[dict], args) -> None:
+    """Measure ``LABEL=WEIGHTS`` files like the rows (``work/measured/<label>.json``); the held-out
+    cars are the ablation's (row D's data set), so every file is measured on the same renders."""
+    import json
+    import re
+
+    if not (work / "D" / "dataset.json").exists():
+        raise SystemExit(f"--measure needs row D's renders in {work / 'D'} (their held-out cars)")
+    val = json.loads((work / "D" / "dataset.json").read_text())["validation_templates"]
+    for spec in specs:
+        label, _, weights = spec.partition("=")
+        if not weights:
+            raise SystemExit(f"--measure wants LABEL=WEIGHTS, got {spec!r}")
+        row = {"label": label, "weights": weights} | measure_weights(weights, work, photos, val, args)
+        out = work / "measured" / (re.sub(r"[^A-Za-z0-9_.-]+", "_", label) + ".json")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(row, indent=1))
+        print(label, row, flush=True)
 
 
 def main() -> None:
@@ -568,6 +664,9 @@ def main() -> None:
     ap.add_argument("--blends", type=int, default=40, help="photo ablation: blended bodies per training set")
     ap.add_argument("--width", type=float, default=1.0, help="photo ablation: MobileNetV2 width multiplier")
     ap.add_argument("--train-seed", type=int, default=0, help="photo ablation: training seed (a replicate's)")
+    ap.add_argument("--measure", action="append", default=[], metavar="LABEL=WEIGHTS",
+                    help="photo ablation: measure this weights file on the rows' photos and renders (repeatable)")
+    ap.add_argument("--table", action="store_true", help="photo ablation: print the table of what is measured")
     ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")

@@ -1,0 +1,54 @@
+"""The photo ablation's table (``benchmarks/bench_view.py --photo-ablation --table``) from the
+rows' stored results: each cell the mean over the training seeds run, the seed-to-seed spread,
+and a row whose renders were drawn otherwise than the row says is flagged."""
+from __future__ import annotations
+
+import json
+import sys
+
+import pytest
+
+from tests.conftest import REPO
+
+
+@pytest.fixture(scope="module")
+def bench():
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import bench_view
+
+    return bench_view
+
+
+def result(bench, value: float) -> dict:
+    keys = [k for _, ks, _ in bench.PHOTO_COLUMNS for k in ks]
+    return {k: value for k in keys} | {"train_s": 600.0, "val_acc": value}
+
+
+#: The first pass's switches, in every data set's dataset.json.
+FIRST_PASS = dict(camera=True, ground=True, environment=True, backdrop=True, artefacts=True, plates=True)
+
+
+def write(path, data) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data))
+
+
+def test_the_table_averages_seeds_and_flags_renders_drawn_otherwise(bench, tmp_path, capsys):
+    write(tmp_path / "D" / "result_e30_64px_w0.5.json", result(bench, 0.5))
+    write(tmp_path / "D" / "result_e30_64px_w0.5_s1.json", result(bench, 0.7))
+    write(tmp_path / "D" / "result_e30_64px.json", result(bench, 0.1))          # another width: not D's row
+    write(tmp_path / "D" / "dataset.json",        # drawn before tone existed: no such key, so off
+          {"variation": {"photo": FIRST_PASS | dict(framing=True, details=True, sharp=True)}})
+    write(tmp_path / "B" / "result_e30_64px_w0.5.json", result(bench, 0.4))
+    write(tmp_path / "B" / "dataset.json", {"variation": {"photo": FIRST_PASS | dict(framing=True, tone=True)}})
+    write(tmp_path / "measured" / "shipped.json", {"label": "shipped"} | result(bench, 0.3))
+
+    bench.print_photo_ablation(tmp_path, 30, 0.5)
+    out = capsys.readouterr().out
+    rows = {line.split(":")[0].strip("| "): line for line in out.splitlines() if line.startswith("| ")}
+    assert "| 2 | 0.60 / 0.60 / 0.60 / 0.60 |" in rows["D"]       # mean of the two seeds
+    assert "renders drawn" not in rows["D"]
+    assert "renders drawn with + tone" in rows["B"] and "| 1 | 0.40 /" in rows["B"]
+    assert "| D | 0.20 / 0.20 /" in out                           # seed to seed: 0.7 - 0.5
+    assert "| shipped | 0.30 / 0.30 /" in out
+    assert not any(k in rows for k in ("A", "C", "E", "F"))          # no results, no row
