@@ -548,6 +548,9 @@ def summarise(rows: list[dict]) -> dict:
     # absolute size (the wheelbase), which one photo cannot show: the library's guess
     sized = [r for r in rows if r["length_err_pct"] is not None and r["wheelbase_err_pct"] is not None]
     proportion = [100.0 * ((1 + r["length_err_pct"] / 100) / (1 + r["wheelbase_err_pct"] / 100) - 1) for r in sized]
+    # the car's width against its wheelbase, signed: how narrow or wide the fitted shape is
+    widths = [100.0 * ((1 + r["width_err_pct"] / 100) / (1 + r["wheelbase_err_pct"] / 100) - 1) for r in sized
+              if r["width_err_pct"] is not None]
     times = [r["seconds"] for r in rows]
     cpu = [r["cpu_seconds"] for r in rows if r["cpu_seconds"] is not None]
     return {
@@ -560,6 +563,7 @@ def summarise(rows: list[dict]) -> dict:
         "size_split_measured": len(sized),
         "median_abs_length_over_wheelbase_err_pct": median_or_none(abs(p) for p in proportion),
         "median_signed_wheelbase_err_pct": median_or_none(r["wheelbase_err_pct"] for r in sized),
+        "median_signed_width_over_wheelbase_err_pct": median_or_none(widths),
         "median_residual_pct": median_or_none(r["residual_pct"] for r in rows),
         **{f"median_iou_{k}": median_or_none(r["iou"][k] for r in rows) for k, _ in REGION_PARTS},
         **{f"iou_{k}_measured": sum(r["iou"][k] is not None for r in rows) for k, _ in REGION_PARTS},
@@ -598,6 +602,8 @@ def summary_table(s: dict) -> str:
              f"| of them (the {s['size_split_measured']} with both published): median \\|length ÷ wheelbase\\| "
              f"error / median signed wheelbase error | {fmt(s['median_abs_length_over_wheelbase_err_pct'], '.1f')} / "
              f"{fmt(s['median_signed_wheelbase_err_pct'], '.1f', signed=True)} % |",
+             f"| median signed width ÷ wheelbase error (−: the fitted car too narrow) | "
+             f"{fmt(s['median_signed_width_over_wheelbase_err_pct'], '.1f', signed=True)} % |",
              f"| median IoU windshield ↔ front_glass | {with_n('windshield')} |",
              f"| median IoU rear window ↔ back_glass | {with_n('rear_window')} |",
              f"| median IoU hood ↔ hood | {with_n('hood')} |",
