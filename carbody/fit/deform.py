@@ -22,6 +22,10 @@ correlated right across the car (``JOINT_FIELD_AMPLITUDE`` in :mod:`carbody.fit.
 then taken up there already, not by bending the whole mix to reach it (on a near-side view, by
 making the car wider). This stage follows what is left.
 
+Both parts move a curve's inner poles with its ends (:func:`carried_by_curve_ends`), and a
+junction that only splits a feature line into cubics with the keypoints ending that line
+(:func:`carried_by_chain_ends`), so a line passes through its marks without kinking between them.
+
 A residual seen in one image says nothing about depth, so what the photo cannot see stays
 mostly as the prior put it. How much of a residual is the car and how much the marking error is
 chosen per photo by the field's marginal likelihood (type-II maximum likelihood) over a small
