@@ -22,6 +22,10 @@ correlated right across the car (``JOINT_FIELD_AMPLITUDE`` in :mod:`carbody.fit.
 then taken up there already, not by bending the whole mix to reach it (on a near-side view, by
 making the car wider). This stage follows what is left.
 
+Both parts move a curve's inner poles with its ends (:func:`carried_by_curve_ends`), and a
+junction that only splits a feature line into cubics with the keypoints ending that line
+(:func:`carried_by_chain_ends`), so a line passes through its marks without kinking between them.
+
 A residual seen in one image says nothing about depth, so what the photo cannot see stays
 mostly as the prior put it. How much of a residual is the car and how much the marking error is
 chosen per photo by the field's marginal likelihood (type-II maximum likelihood) over a small
@@ -175,7 +179,60 @@ def _field_basis(reference: np.ndarray, topology: Topology, sigma: tuple[float, 
     evals, evecs = np.linalg.eigh(cov)
     evals, evecs = np.clip(evals[::-1], 0.0, None), evecs[:, ::-1]
     q = int(np.searchsorted(np.cumsum(evals) / evals.sum(), FIELD_ENERGY)) + 1
-    return carried_by_curve_ends(evecs[:, :q] * np.sqrt(evals[:q]))
+    return carried_by_curve_ends(carried_by_chain_ends(evecs[:, :q] * np.sqrt(evals[:q]), reference, topology))
+
+
+def chain_weights(reference: np.ndarray, topology: Topology) -> dict[str, tuple[str, str, float]]:
+    """{junction that is no keypoint: (keypoint A, keypoint B, f)}: the junction lies on the run
+    of curves from keypoint A to keypoint B (a fender top, a roof side, a centre line), at the
+    fraction f of that run's length (chords between its junctions on ``reference``)."""
+    keypoints = {k.name for k in topology.keypoints}
+    at = {j: np.asarray(reference, float).reshape(-1, 3)[topology.junction_point_index(j)]
+          for j in topology.junctions}
+    neighbours: dict[str, list[str]] = {j: [] for j in topology.junctions}
+    for c in topology.curves:
+        neighbours[c.start].append(c.end)
+        neighbours[c.end].append(c.start)
+    out = {}
+    for j in topology.junctions:
+        if j in keypoints:
+            continue
+        ends, lengths = [], []
+        for first in neighbours[j]:  # walk each way to the keypoint that ends the run
+            prev, cur, length = j, first, float(np.linalg.norm(at[first] - at[j]))
+            while cur not in keypoints:
+                nxt = next(n for n in neighbours[cur] if n != prev)
+                prev, cur, length = cur, nxt, length + float(np.linalg.norm(at[nxt] - at[cur]))
+            ends.append(cur)
+            lengths.append(length)
+        out[j] = (ends[0], ends[1], lengths[0] / (lengths[0] + lengths[1]))
+    return out
+
+
+def carried_by_chain_ends(basis: np.ndarray, reference: np.ndarray, topology: Topology) -> np.ndarray:
+    """A displacement basis (3·P, q) whose junctions that are no keypoints move as the blend of
+    the keypoints ending their run of curves, by where along the run they lie
+    (:func:`chain_weights`).
+
+    Such a junction only splits a feature line (a fender top, a roof side, a centre line) into
+    cubics: it is no feature of its own that a car could have elsewhere. A kernel over the
+    distance moves it by its distance from the marks, so a mark moved further than the local
+    part's correlation length from the mix (an A-pillar foot higher than every template's)
+    leaves the split points of the line behind, and the line kinks between two marks it passes
+    through: the fitted fender top sagged 20–100 mm below its ends on the real photos, its
+    hood drawn low in the photo. Blended from the run's ends, the line follows both. The
+    keypoints' own rows are unchanged, so what the marks see of the field is too.
+    """
+    out, groups = basis.copy(), topology.junction_groups()
+
+    def rows(junction: str) -> np.ndarray:
+        i = topology.junction_point_index(junction)
+        return basis[3 * i:3 * i + 3]
+    for j, (a, b, f) in chain_weights(reference, topology).items():
+        moved = (1.0 - f) * rows(a) + f * rows(b)
+        for index in groups[j]:
+            out[3 * index:3 * index + 3] = moved
+    return out
 
 
 def carried_by_curve_ends(basis: np.ndarray) -> np.ndarray:
