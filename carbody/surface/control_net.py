@@ -265,14 +265,8 @@ def _keep_inside(outline: RegionOutline, samples: BoundarySamples, junc: np.ndar
         pts = samples.project(np.vstack([outline.side_a.points(np.atleast_1d(a)), outline.side_b.points(np.atleast_1d(b))]))
         k = len(np.atleast_1d(a))
         lines = shapely.linestrings(np.stack([pts[:k], pts[k:]], axis=1))
-        # a chord the region covers has nothing outside it: only the others are cut (the
-        # overlay is what costs here, the prepared test is cheap)
-        ok = shapely.covers(region, lines)
-        rest = lines[~ok]
-        if len(rest):
-            outside = shapely.length(shapely.difference(rest, region)) / np.maximum(shapely.length(rest), 1e-12)
-            ok[~ok] = outside <= MAX_OUTSIDE
-        return ok
+        outside = shapely.length(shapely.difference(lines, region)) / np.maximum(shapely.length(lines), 1e-12)
+        return outside <= MAX_OUTSIDE
 
     for i, (a, b) in enumerate(junc):
         # a rib joining a junction of each side cannot slide: both of its ends must stay put
