@@ -76,7 +76,7 @@ def warm_up(parts: tuple[str, ...] = WARM_PARTS) -> dict[str, float]:
 
             load_numpy_classifier()
         elif part == "kernel":
-            import cadquery  # noqa: F401  (the assembly writer; imports OCP)
+            import OCP  # noqa: F401  (the faces, the sewing and the STEP writers)
             import vtkmodules.vtkRenderingCore  # noqa: F401
             import vtkmodules.vtkRenderingOpenGL2  # noqa: F401
 

@@ -290,29 +290,19 @@ def check_output_dir(out_dir: str | Path, inputs: dict[str, str | Path | None] |
 def write_assembly(path: Path, result: Reconstruction) -> Path:
     """One AP214 file holding the wireframe and the body as named parts of an assembly: every
     curve and face named as in wireframe.step and body.step (``carbody parts`` lists them)."""
-    import cadquery as cq
-    from cadquery.occ_impl.assembly import toCAF
-
     from carbody.occ.shapes import sub_shapes
-    from carbody.occ.step_curves import write_step_document
+    from carbody.occ.step_assembly import AssemblyPart, write_assembly_step
     from carbody.surface.body import face_names, region_colour
 
-    # cadquery wants every name in an assembly unique, its own among them: the root gets the
-    # car's name once the parts are in, so a car called "body" or "wireframe" keeps it.
-    assy = cq.Assembly(name=f"{result.name} assembly")
     curves = result.wireframe.named_curves(both_halves=True)
     wire_shape = result.wireframe_shape()
-    assy.add(cq.Shape.cast(wire_shape), name="wireframe", color=cq.Color(0.1, 0.2, 0.6))
-    wire_part = assy.children[-1]
-    for (name, _), edge in zip(curves, sub_shapes(wire_shape, "edge")):
-        wire_part.addSubshape(cq.Edge(edge), name=name)
-    assy.add(result.body_cadquery(), name="body", color=cq.Color(0.7, 0.7, 0.72))
-    body_part = assy.children[-1]
-    for name, patch, (_, face) in zip(face_names(result.body), result.body.patches, result.body.faces):
-        body_part.addSubshape(cq.Face(face), name=name, color=cq.Color(*region_colour(patch.region)))
-    assy.name = result.name
-    _, doc = toCAF(assy, True)  # cadquery's own STEP export writes the same document, to a path
-    return write_step_document(path, doc, OutputError)
+    wire = AssemblyPart("wireframe", wire_shape, (0.1, 0.2, 0.6),
+                        [(name, edge, None) for (name, _), edge in zip(curves, sub_shapes(wire_shape, "edge"))])
+    body = AssemblyPart("body", result.body_shape(), (0.7, 0.7, 0.72),
+                        [(name, face, region_colour(patch.region))
+                         for name, patch, (_, face) in zip(face_names(result.body), result.body.patches,
+                                                           result.body.faces)])
+    return write_assembly_step(path, result.name, [wire, body], OutputError)
 
 
 def _read_inputs(image, keypoints):
