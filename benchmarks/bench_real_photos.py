@@ -68,7 +68,8 @@ Definitions (per photo):
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); medians over the photos where a figure is defined (the count
   in brackets); wall time median and max; the fit and surface stages' wall times
-  (``report["timings_s"]``: in a fresh process they include the imports each stage makes).
+  (``report["timings_s"]``), and before them the load stage's: OCCT and scipy loaded once per
+  process, which a warm process (batch, the marking page) no longer pays.
 - **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``
   not null).
 - **Camera check**: the marks kept by the fit, reprojected here from ``keypoints_mm`` with the
@@ -579,7 +580,7 @@ def summarise(rows: list[dict]) -> dict:
         "median_wheel_dv_pct": median_or_none(r["wheel_dv_pct"] for r in rows),
         "median_time_s": statistics.median(times) if times else None, "max_time_s": max(times, default=None),
         "median_cpu_s": statistics.median(cpu) if cpu else None, "max_cpu_s": max(cpu, default=None),
-        **{f"median_{k}_s": median_or_none((r["stage_s"] or {}).get(k) for r in rows) for k in ("fit", "surfaces")},
+        **{f"median_{k}_s": median_or_none((r["stage_s"] or {}).get(k) for r in rows) for k in ("load", "fit", "surfaces")},
         "median_fit_and_surfaces_s": median_or_none(r["stage_s"]["fit"] + r["stage_s"]["surfaces"] for r in rows
                                                     if r["stage_s"] and "surfaces" in r["stage_s"]),
         "fallbacks": sum(bool(r["fallback"]) for r in rows),
@@ -624,7 +625,8 @@ def summary_table(s: dict) -> str:
              f"{fmt(s['max_cpu_s'], '.1f')} s |",
              f"| fit + surfaces per photo (wall, the report's stage times), median | "
              f"{fmt(s['median_fit_and_surfaces_s'], '.1f')} s (fit {fmt(s['median_fit_s'], '.1f')}, "
-             f"surfaces {fmt(s['median_surfaces_s'], '.1f')}) |",
+             f"surfaces {fmt(s['median_surfaces_s'], '.1f')}); before them, loading OCCT and scipy once "
+             f"per process {fmt(s['median_load_s'], '.1f')} s |",
              f"| stiffer fallback used | {s['fallbacks']} |",
              f"| fitted left half at x ≤ 0 (mirrored) | {s['mirrored_halves']} |"]
     return "\n".join(lines)

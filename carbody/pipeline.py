@@ -415,6 +415,10 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             on_stage(label)
         return time.perf_counter()
 
+    start = time.perf_counter()
+    _load_libraries()
+    timings["load"] = time.perf_counter() - start
+
     start = stage("view")
     prediction, source = None, "given"
     if prior is None:
@@ -471,6 +475,14 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
             raise failed(exc) from None
     timings["surfaces"] = time.perf_counter() - start
     return Reconstruction(name, rgb, image_path, source, prediction, fit, body, timings, fallback)
+
+
+def _load_libraries() -> None:
+    """Load what the fit and the surfaces use, once per process: OCCT (one large library, loaded
+    by its first module) and scipy's optimisers. In a fresh process this costs about 1.1 s of CPU
+    (BENCHMARKS.md, "Real photos"); timed apart, the stages' times are a photo's own work."""
+    import OCP.TopoDS  # noqa: F401
+    import scipy.optimize  # noqa: F401
 
 
 def _blended_toward(fit, stiff, stiff_body):
