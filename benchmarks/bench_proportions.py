@@ -1,0 +1,96 @@
+"""The fitted car's proportions on renders made like the real photos: is there a bias?
+
+On the real photos the fitted cars come out narrow for their wheelbase (``bench_real_photos.py``,
+"median signed width ÷ wheelbase error"). This asks whether the fit itself does that, with
+marks as sparse and noisy as a person's: each template left out of the library
+(``bench_fit_accuracy.left_out``), photographed by a pinhole camera from ``--distance`` mm at 5°
+elevation from the front and rear three-quarters, ``--marks`` of its visible keypoints kept at
+random with ``--noise`` px of noise, fitted as ``carbody reconstruct`` fits a photo (no view,
+every view searched from a flat prior, the distance found, no wheelbase told). Printed: the
+median and mean signed errors of the fitted length and width in wheelbases (the sampled curves'
+extents, as :mod:`carbody.fit.size` measures them), of the wheelbase the proportions give, and
+of the azimuth toward the side (+: the view found more side-on than the truth).
+
+Run: python benchmarks/bench_proportions.py [--distance 4000] [--marks 12] [--noise 4] [--every 1]
+    [--json OUT.json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_fit_accuracy import left_out, synthetic_view  # noqa: E402
+
+#: Front and rear three-quarter views, both sides (degrees).
+VIEWS = (35, 55, 305, 325, 145, 215)
+ELEVATION_DEG = 5.0
+
+
+def fit_rows(t: int, distance_mm: float, marks: int, noise_px: float) -> list[dict]:
+    """One left-out template's rows, one per view."""
+    from carbody.fit import FitOptions, ViewPrior, fit_wireframe
+    from carbody.view.labels import CLASS_ANGLES_DEG
+    from carbody.wireframe import sample_curves
+
+    name, loo, truth, wb, _ = left_out(t)
+    rng = np.random.default_rng(3000 + t)
+    samples = sample_curves(truth, 64).reshape(-1, 3)
+    true_length, true_width = np.ptp(samples[:, 1]) / 1000.0, 2.0 * samples[:, 0].max() / 1000.0
+    flat = ViewPrior.from_classifier(CLASS_ANGLES_DEG, np.full(len(CLASS_ANGLES_DEG), 1.0 / len(CLASS_ANGLES_DEG)))
+    options = FitOptions(camera_distance_mm="auto", check_orthographic=True)
+    rows = []
+    for azimuth in VIEWS:
+        kps, size, _ = synthetic_view(truth, azimuth, rng, ELEVATION_DEG, distance_mm * 1000.0 / wb, noise_px)
+        keep = rng.choice(sorted(kps), size=min(marks, len(kps)), replace=False)
+        res = fit_wireframe({k: kps[k] for k in keep}, flat, loo, image_size=size, options=options)
+        turn = (res.view.azimuth - azimuth + 180.0) % 360.0 - 180.0
+        side_on = turn if (azimuth % 180.0) < 90.0 else -turn
+        rows.append({"template": name, "azimuth": azimuth, "marks": len(keep),
+                     "length_over_wheelbase_pct": 100.0 * (res.size.proportions["length"] / true_length - 1.0),
+                     "width_over_wheelbase_pct": 100.0 * (res.size.proportions["width"] / true_width - 1.0),
+                     "wheelbase_pct": 100.0 * (res.wheelbase_mm / wb - 1.0),
+                     "azimuth_toward_side_deg": float(side_on)})
+    return rows
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--distance", type=float, default=4000.0, help="camera distance from the car's centre, mm")
+    ap.add_argument("--marks", type=int, default=12, help="visible keypoints kept at random per view")
+    ap.add_argument("--noise", type=float, default=4.0, help="marking noise, px (1000 px wide image)")
+    ap.add_argument("--every", type=int, default=1, help="every n-th template (1: all)")
+    ap.add_argument("--json", help="write the rows here")
+    args = ap.parse_args(argv)
+    from threadpoolctl import threadpool_limits
+
+    from carbody.library import load_library
+
+    start = time.perf_counter()
+    rows = []
+    with threadpool_limits(1):
+        for t in range(0, len(load_library().template_names), args.every):
+            rows += fit_rows(t, args.distance, args.marks, args.noise)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+    print(f"# {len(rows)} fits: {len(rows) // len(VIEWS)} templates left out x {len(VIEWS)} views, "
+          f"{args.marks} marks, {args.noise:g} px noise, camera {args.distance:.0f} mm away; "
+          f"{time.perf_counter() - start:.0f} s\n")
+    print("| signed error | median | mean | sd |")
+    print("|---|---|---|---|")
+    for key, label in (("width_over_wheelbase_pct", "width ÷ wheelbase, %"),
+                       ("length_over_wheelbase_pct", "length ÷ wheelbase, %"),
+                       ("wheelbase_pct", "wheelbase from the proportions, %"),
+                       ("azimuth_toward_side_deg", "view toward the side, °")):
+        v = np.array([r[key] for r in rows])
+        print(f"| {label} | {np.median(v):+.1f} | {v.mean():+.1f} | {v.std():.1f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
