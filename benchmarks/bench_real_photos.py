@@ -49,9 +49,9 @@ Definitions (per photo):
   annotated the part for that photo (blank otherwise). The two hoods are not quite one thing:
   the template's hood region runs out to the fender's crest (``hood_side``) and back to the
   windshield's lower corners (``a_pillar_base``); the people outlined the bonnet panel, whose
-  shut lines lie inboard of both. On the near side ours then reaches a little past theirs
-  (about 5 % of their area at the median). Between the marked nose and front corners the
-  hood's front edge is the prior's; the people's lies further forward there.
+  shut lines lie inboard of both. On the near side ours then reaches a little past theirs.
+  Between the marked nose and front corners the hood's front edge is the prior's; the
+  people's lies further forward there.
 - **Wheel centres**: the fitted car's four wheel centres at (±x, y, z) with (y, z) the
   wireframe's own wheel centres (:func:`carbody.wireframe.wheel_centre`: ≈ (0, 0) and
   (wheelbase, 0)) and x that of the fitted ``front_arch_top`` / ``rear_arch_top`` keypoint (the

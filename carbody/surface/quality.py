@@ -34,13 +34,6 @@ def _dbern(t: np.ndarray) -> np.ndarray:
                            3 * t**2], axis=-1)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.cross`` of (..., 3) float arrays: the same products and differences, without its
-    per-call overhead (the figures here take a few thousand cross products per body)."""
-    a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
 def surface_points(net: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Points S(u_k, v_k) of a bicubic net (4, 4, 3); u, v (m,) -> (m, 3)."""
     return np.einsum("mi,mj,ijd->md", _bern(u), _bern(v), net)
@@ -50,7 +43,7 @@ def surface_normals(net: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray
     """Unit normals S_u x S_v (m, 3) at (u_k, v_k)."""
     su = np.einsum("mi,mj,ijd->md", _dbern(u), _bern(v), net)
     sv = np.einsum("mi,mj,ijd->md", _bern(u), _dbern(v), net)
-    n = _cross(su, sv)
+    n = np.cross(su, sv)
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
@@ -74,7 +67,7 @@ def _seam_figures(nets_f: np.ndarray, uf: np.ndarray, vf: np.ndarray, nets_g: np
     def points_normals(nets, u, v):
         bu, bv, du, dv = _bern(u), _bern(v), _dbern(u), _dbern(v)
         points = np.einsum("pmi,pmj,pijd->pmd", bu, bv, nets)
-        n = _cross(np.einsum("pmi,pmj,pijd->pmd", du, bv, nets), np.einsum("pmi,pmj,pijd->pmd", bu, dv, nets))
+        n = np.cross(np.einsum("pmi,pmj,pijd->pmd", du, bv, nets), np.einsum("pmi,pmj,pijd->pmd", bu, dv, nets))
         return points, n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-300)
 
     pf, nf = points_normals(nets_f, uf, vf)
@@ -84,14 +77,14 @@ def _seam_figures(nets_f: np.ndarray, uf: np.ndarray, vf: np.ndarray, nets_g: np
 
 def scaled_jacobian(net: np.ndarray) -> float:
     """Smallest scaled Jacobian over the corners of the 3 x 3 control quads of a net (4, 4, 3)."""
-    n_ref = _cross(net[3, 0] + net[3, 3] - net[0, 0] - net[0, 3], net[0, 3] + net[3, 3] - net[0, 0] - net[3, 0])
+    n_ref = np.cross(net[3, 0] + net[3, 3] - net[0, 0] - net[0, 3], net[0, 3] + net[3, 3] - net[0, 0] - net[3, 0])
     n_ref /= np.linalg.norm(n_ref)
     q00, q10, q01, q11 = net[:-1, :-1], net[1:, :-1], net[:-1, 1:], net[1:, 1:]
     corners = [(q00, q10, q01), (q10, q11, q00), (q11, q01, q10), (q01, q00, q11)]
     worst = np.inf
     for c, a, b in corners:  # edges from corner c to a and to b, counter-clockwise
         ea, eb = a - c, b - c
-        cr = _cross(ea, eb) @ n_ref
+        cr = np.cross(ea, eb) @ n_ref
         la, lb = np.linalg.norm(ea, axis=-1), np.linalg.norm(eb, axis=-1)
         sj = cr / np.maximum(la * lb, 1e-300)
         worst = min(worst, float(sj.min()))
@@ -116,7 +109,7 @@ def surface_jacobian(net: np.ndarray, n: int = 9) -> float:
     bu, bv, du, dv = _grid_bases(n)
     su = np.einsum("mi,mj,ijd->md", du, bv, net)
     sv = np.einsum("mi,mj,ijd->md", bu, dv, net)
-    cr = _cross(su, sv)
+    cr = np.cross(su, sv)
     mean = cr.sum(axis=0)
     mean /= np.linalg.norm(mean)
     lengths = np.linalg.norm(su, axis=1) * np.linalg.norm(sv, axis=1)
