@@ -79,3 +79,17 @@ def test_a_damaged_or_foreign_file_reads_as_none(tmp_path, damage):
     else:
         path.write_bytes(damage)
     assert prepared_store.read_stored(path, "gauss", {"ShapeModel": ShapeModel}) is None
+
+
+def test_a_new_store_removes_what_older_code_stored_for_the_same_library_and_key(library, tmp_path, monkeypatch):
+    monkeypatch.setenv("CARBODY_CACHE_DIR", str(tmp_path))
+    path = stored_path(library.digest, "gauss")
+    lib, code, tag = path.name.removeprefix("prepared-").rsplit("-", 2)
+    older = tmp_path / f"prepared-{lib}-{'0' * len(code)}-{tag}"
+    other_key = tmp_path / f"prepared-{lib}-{'0' * len(code)}-{'1' * 12}.npz"
+    other_library = tmp_path / f"prepared-another-{'0' * len(code)}-{tag}"
+    for p in (older, other_key, other_library):
+        p.write_bytes(b"stored by older code")
+    prepared_store.write_stored(path, "gauss", np.arange(3.0))
+    assert path.is_file() and not older.exists()
+    assert other_key.exists() and other_library.exists()

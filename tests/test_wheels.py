@@ -187,7 +187,7 @@ def test_hub_rows_are_a_keypoint_s_rows_for_a_hub():
     uv = project(np.array([shape.reshape(-1, 3)[s.point_index] * s.sign for s in slots]), view)
     from carbody.fit.wheels import WheelFound
 
-    found = [WheelFound("front_left", np.zeros(2), np.zeros(2), 1.0, 0.0, 1.0, 1.0)]
+    found = [WheelFound("front_left", np.zeros(2), 1.0, 0.0)]
     hubs = HubTargets.of(found, project(hub_points(shape)[[0]], view), np.ones(1))
     L, c, target = _outline_rows(hubs, M, const, uv, view, shape, idx)
     assert np.allclose(L @ shape + c, target, atol=1e-6)
@@ -209,3 +209,20 @@ def test_a_circle_is_supported_all_round_and_a_straight_edge_adds_nothing():
     support = circle_support(edges, np.array([60.0, 60.0]), radii, 24, 0.9)[0]
     assert support[np.argmin(np.abs(radii - 30))] > 0.9
     assert support[np.abs(radii - 30) > 2].max() < FIT_POLICY.wheel_circle_floor  # (4 sectors of 24)
+
+
+def test_the_hubs_are_the_wireframe_s_wheel_centres_under_its_arch_tops(library):
+    """The hubs the photo is searched round and the drawings above put their wheels at are the
+    wheel centres the wireframe itself defines (:func:`carbody.wireframe.wheel_centre`, along the
+    car and up), across the car under each arch top, on both sides."""
+    from carbody.wireframe import wheel_centre
+
+    topo = load_topology()
+    for t in (0, 5, 9):
+        points = library.points(library.original(t)) + [0.0, 37.0, 11.0]  # moved off the origin
+        hubs = dict(zip(WHEELS, hub_points(points)))
+        for side in ("front", "rear"):
+            top = points[topo.junction_point_index(f"{side}_arch_top")]
+            for name, sign in ((f"{side}_left", 1.0), (f"{side}_right", -1.0)):
+                assert np.allclose(hubs[name][1:], wheel_centre(points, topo, side))
+                assert np.isclose(hubs[name][0], sign * top[0])

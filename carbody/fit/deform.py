@@ -42,6 +42,7 @@ import numpy as np
 
 from carbody.camera import View
 from carbody.fit.keypoints_io import KeypointSlot
+from carbody.errors import TopologyError
 from carbody.topology import Topology
 
 #: Standard deviation of each displacement component, normalised units (≈ 27 mm at a 2.7 m
@@ -193,6 +194,9 @@ def chain_weights(reference: np.ndarray, topology: Topology) -> dict[str, tuple[
     for c in topology.curves:
         neighbours[c.start].append(c.end)
         neighbours[c.end].append(c.start)
+    lone = [j for j in topology.junctions if j not in keypoints and len(neighbours[j]) != 2]
+    if lone:  # (the runs below walk through such junctions: each must join exactly two curves)
+        raise TopologyError(f"junction {lone[0]} is no keypoint but ends or branches a run of curves")
     out = {}
     for j in topology.junctions:
         if j in keypoints:

@@ -30,12 +30,12 @@ SOURCES = ("fit/solve.py", "fit/shape_prior.py", "fit/deform.py", "topology.py",
 def code_digest() -> str | None:
     """A digest of :data:`SOURCES`' bytes, the layout version and the numpy and scipy versions
     (None when the sources cannot be read: nothing is then stored)."""
-    import scipy
+    from importlib.metadata import version
 
     import carbody
 
     root = Path(carbody.__file__).parent
-    digest = hashlib.sha256(f"v{STORE_VERSION}|numpy {np.__version__}|scipy {scipy.__version__}".encode())
+    digest = hashlib.sha256(f"v{STORE_VERSION}|numpy {np.__version__}|scipy {version('scipy')}".encode())
     try:
         for name in SOURCES:
             digest.update((root / name).read_bytes())
@@ -82,7 +82,8 @@ def read_stored(path: Path, what, kinds: dict[str, type]):
 
 def write_stored(path: Path, what, value) -> None:
     """Store ``value`` at ``path`` (:func:`carbody.library.write_cache_file`: whole or not at
-    all)."""
+    all), and remove what an earlier version of the code stored for the same library and key
+    (:func:`stored_path`: the same name but for the code's digest), which nothing reads again."""
     from carbody.library import write_cache_file
 
     if isinstance(value, np.ndarray):
@@ -95,3 +96,7 @@ def write_stored(path: Path, what, value) -> None:
                 arrays[f.name] = np.asarray(v)
     arrays["_what"] = np.array(repr(what))
     write_cache_file(path, **arrays)
+    prefix, _, tag = path.name.rsplit("-", 2)
+    for old in path.parent.glob(f"{prefix}-*-{tag}"):
+        if old != path:
+            old.unlink(missing_ok=True)

@@ -123,21 +123,14 @@ class WheelFound:
     Attributes:
         wheel: its name (:data:`WHEELS`).
         uv: (2,) float, the hub, photo pixels.
-        predicted_uv: (2,) float, where the fit put it before, photo pixels.
         score: the concentric circles' score at the hub (:func:`concentric_score`).
         runner_up: the best score more than ``wheel_separation`` arch radii away.
-        radius_px: the largest supported circle's radius about the hub, photo pixels (about
-            the tyre's, along the car).
-        aspect: the patch's stretch along the car that fitted best.
     """
 
     wheel: str
     uv: np.ndarray
-    predicted_uv: np.ndarray
     score: float
     runner_up: float
-    radius_px: float
-    aspect: float
 
 
 def grey_photo(image: np.ndarray) -> np.ndarray:
@@ -194,7 +187,7 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
         except AngleError:  # the patch reaches behind a camera close by: no wheel to see there
             continue
         if hit is not None:
-            found.append(WheelFound(name, hit[0], centre, *hit[1:]))
+            found.append(WheelFound(name, *hit))
     return found
 
 
@@ -294,7 +287,7 @@ def hough_centres(edges: PatchEdges, radii_px: np.ndarray, floor: float, cap: fl
     share = box.max(axis=0) / (2 * np.pi * radii_px)[:, None, None]
     padded = np.pad(share, ((1, 1), (0, 0), (0, 0)))
     share = np.maximum(share, np.maximum(padded[:-2], padded[2:]))  # a circle a pixel off its radius
-    score[lo:hi, lo:hi] = np.clip(share - floor, 0.0, cap - floor).sum(axis=0)
+    score[lo:hi, lo:hi] = concentric_score(np.moveaxis(share, 0, -1), floor, cap)
     return score
 
 
@@ -330,8 +323,8 @@ def concentric_score(support: np.ndarray, floor: float, cap: float) -> np.ndarra
 
 
 def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px: float, policy: FitPolicy):
-    """(hub (2,) photo px, score, runner-up's score, radius px, aspect) of the best concentric circles in
-    the window round the predicted hub, or None when none is clear (module docstring)."""
+    """(hub (2,) photo px, score, runner-up's score) of the best concentric circles in the window
+    round the predicted hub, or None when none is clear (module docstring)."""
     import cv2
 
     window = policy.wheel_window  # arch radii round the predicted hub
@@ -362,26 +355,24 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
         centres = (np.stack([cols[order], rows[order]], axis=1)[:, None] + shifts[None]).reshape(-1, 2)
         support = circle_support(edges, centres, radii_px, policy.wheel_sectors, policy.wheel_alignment)
         values = concentric_score(support, floor, cap).reshape(len(order), len(shifts))
-        scored = [(float(v.max()), *map(float, centres[i * len(shifts) + int(v.argmax())])) for i, v in enumerate(values)]
+        at = [i * len(shifts) + int(v.argmax()) for i, v in enumerate(values)]  # each peak's best centre
+        scored = [(float(v.max()), *map(float, centres[j]), j) for v, j in zip(values, at)]
         top = max(scored)
         if best is not None and top[0] <= best[0]:
             continue
-        runner = max([s for s, c, r in scored if np.hypot(c - top[1], r - top[2])
+        runner = max([s for s, c, r, _ in scored if np.hypot(c - top[1], r - top[2])
                       > policy.wheel_separation * PATCH_ARCH_PX], default=0.0)
-        support = circle_support(edges, np.array(top[1:]), radii_px, policy.wheel_sectors, policy.wheel_alignment)[0]
-        outer = np.flatnonzero(support >= (floor + cap) / 2)
-        best = (top[0], runner, np.array(top[1:]), H, aspect, float(radii_px[outer[-1]]) if len(outer) else 0.0,
-                edges, float(radii_px[np.argmax(support)]))
+        best = (top[0], runner, np.array(top[1:3]), H, edges, float(radii_px[np.argmax(support[top[3]])]))
     if best is None:
         return None
-    score, runner, centre, H, aspect, outer, edges, rim = best
+    score, runner, centre, H, edges, rim = best
     if score < policy.wheel_min_score or score < policy.wheel_min_margin * runner:
         return None
     ellipse = rim_ellipse_centre(edges, centre, rim, policy.wheel_sectors)
     if ellipse is not None and np.hypot(*(ellipse - centre)) < policy.wheel_separation * PATCH_ARCH_PX:
         centre = ellipse
     uv = apply_homography(H, centre + 0.5)  # (pixel centres)
-    return uv, score, runner, outer * radius_px / PATCH_ARCH_PX, aspect
+    return uv, score, runner
 
 
 def rim_ellipse_centre(edges: PatchEdges, centre: np.ndarray, radius: float, sectors: int,
