@@ -118,26 +118,35 @@ def confusion_png(rows, probs, path: Path, title: str) -> None:
     plt.close(fig)
 
 
+def timed_ms(call, repeats: int, warm_up: int = 10) -> tuple[list[float], list[float]]:
+    """([wall ms], [CPU ms]) of ``repeats`` calls of ``call()``, after ``warm_up`` untimed ones."""
+    for _ in range(warm_up):
+        call()
+    wall, cpu = [], []
+    for _ in range(repeats):
+        w0, c0 = time.perf_counter(), time.process_time()
+        call()
+        wall.append((time.perf_counter() - w0) * 1000)
+        cpu.append((time.process_time() - c0) * 1000)
+    return wall, cpu
+
+
 def inference_ms(image_path: Path, weights: str | None, repeats: int = 200) -> dict[str, float]:
     """Median / 90th-percentile ms per single-image call (decode + resize + network), 1 thread."""
     import torch
+    from threadpoolctl import threadpool_limits
 
     from carbody.view.predict import load_classifier, predict_view
 
     torch.set_num_threads(1)
     load_classifier(weights)
     out = {}
-    for mirror in (False, True):
-        for _ in range(10):
-            predict_view(image_path, weights, mirror_average=mirror)
-        t = []
-        for _ in range(repeats):
-            s = time.perf_counter()
-            predict_view(image_path, weights, mirror_average=mirror)
-            t.append((time.perf_counter() - s) * 1000)
-        key = "mirror_avg" if mirror else "single"
-        out[f"{key}_median_ms"] = statistics.median(t)
-        out[f"{key}_p90_ms"] = float(np.percentile(t, 90))
+    with threadpool_limits(1):
+        for mirror in (False, True):
+            t, _ = timed_ms(lambda: predict_view(image_path, weights, mirror_average=mirror), repeats)
+            key = "mirror_avg" if mirror else "single"
+            out[f"{key}_median_ms"] = statistics.median(t)
+            out[f"{key}_p90_ms"] = float(np.percentile(t, 90))
     return out
 
 
@@ -146,7 +155,11 @@ def main_speed(args) -> int:
     network with mirror averaging, no torch), wall and CPU time, 1 BLAS thread; a ``.pt`` is
     exported to a temporary ``.npz`` first. The load average is printed: on the shared machine
     the wall time grows with it, the CPU time much less."""
-    from carbody.view.predict import predict_view
+    from threadpoolctl import threadpool_limits
+
+    from carbody.view.numpy_net import load_numpy_classifier, numpy_weights_for, probabilities
+    from carbody.view.predict import crop_to_box, predict_view, read_image
+    from carbody.view.train import to_square_input
 
     weights = args.weights
     if weights and Path(weights).suffix == ".pt":
@@ -161,42 +174,23 @@ def main_speed(args) -> int:
         image, box = photos[0]["image"], photos[0]["parts_box"]
     else:                        # no shared photos: a synthetic 800 x 600 picture
         image, box = np.random.default_rng(0).integers(0, 255, (600, 800, 3), dtype=np.uint8), (100, 150, 700, 450)
-    from carbody.view.numpy_net import load_numpy_classifier, numpy_weights_for
-
     size = load_numpy_classifier(numpy_weights_for(weights)).meta["input_size"]
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "
           f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} (1/5/15 min); numpy network, {size} px input, "
           f"1 BLAS thread; picture {Path(image).name if photos else 'synthetic'} with its box")
     print("| call | wall ms median | wall ms 90th pct | CPU ms median |\n|---|---|---|---|")
-    for mirror in (False, True):
-        for _ in range(10):
-            predict_view(image, weights, mirror_average=mirror, box=box)
-        wall, cpu = [], []
-        for _ in range(args.repeats):
-            w0, c0 = time.perf_counter(), time.process_time()
-            predict_view(image, weights, mirror_average=mirror, box=box)
-            wall.append((time.perf_counter() - w0) * 1000)
-            cpu.append((time.process_time() - c0) * 1000)
-        label = "whole call (decode + crop + network), " + ("with mirror averaging (default)" if mirror else "one pass")
-        print(f"| {label} | {statistics.median(wall):.2f} | {np.percentile(wall, 90):.2f} | "
-              f"{statistics.median(cpu):.2f} |")
-    from carbody.view.numpy_net import probabilities
-    from carbody.view.predict import crop_to_box, read_image
-    from carbody.view.train import to_square_input
-
     x = to_square_input(crop_to_box(read_image(image), box), size)[None]
-    for mirror in (False, True):
-        for _ in range(10):
-            probabilities(x, numpy_weights_for(weights), mirror)
-        wall, cpu = [], []
-        for _ in range(args.repeats):
-            w0, c0 = time.perf_counter(), time.process_time()
-            probabilities(x, numpy_weights_for(weights), mirror)
-            wall.append((time.perf_counter() - w0) * 1000)
-            cpu.append((time.process_time() - c0) * 1000)
-        label = "network alone, " + ("with mirror averaging" if mirror else "one pass")
-        print(f"| {label} | {statistics.median(wall):.2f} | {np.percentile(wall, 90):.2f} | "
-              f"{statistics.median(cpu):.2f} |")
+    calls = [("whole call (decode + crop + network), ",
+              lambda mirror: predict_view(image, weights, mirror_average=mirror, box=box),
+              ("one pass", "with mirror averaging (default)")),
+             ("network alone, ", lambda mirror: probabilities(x, numpy_weights_for(weights), mirror),
+              ("one pass", "with mirror averaging"))]
+    with threadpool_limits(1):
+        for head, call, tails in calls:
+            for mirror in (False, True):
+                wall, cpu = timed_ms(lambda: call(mirror), args.repeats)
+                print(f"| {head}{tails[mirror]} | {statistics.median(wall):.2f} | {np.percentile(wall, 90):.2f} | "
+                      f"{statistics.median(cpu):.2f} |")
     print(f"load average after: {' / '.join(f'{x:.1f}' for x in os.getloadavg())}")
     return 0
 

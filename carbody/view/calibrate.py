@@ -103,7 +103,7 @@ def calibrate_weights(weights: str | Path, dataset_dir: str | Path, progress: bo
 
     from carbody.view.dataset import read_manifest
     from carbody.view.predict import load_classifier
-    from carbody.view.train import load_images
+    from carbody.view.train import INPUT_SIZE, load_images
 
     weights = Path(weights)
     model, meta = load_classifier(str(weights))
@@ -113,7 +113,7 @@ def calibrate_weights(weights: str | Path, dataset_dir: str | Path, progress: bo
     rows = [r for r in rows if r.get("template") in held_out] if held_out else [r for r in rows if r["split"] == "val"]
     if not rows:
         raise ViewError(f"{dataset_dir}: no images of cars held out from training to calibrate on")
-    x = load_images(dataset_dir, rows, progress, int(meta.get("input_size", 64)))
+    x = load_images(dataset_dir, rows, progress, int(meta.get("input_size", INPUT_SIZE)))
     y = np.array([r["class_index"] for r in rows], dtype=np.int64)
     logits, mirror = network_logits(model, x)
     t = fit_temperature(logits, y, mirror)

@@ -56,8 +56,6 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--zoom", action="store_true", help="augment with a random zoom of 0.85-1.2 (an inexact box)")
     p.add_argument("--input-size", type=int, default=64, metavar="PX",
                    help="network input side in pixels (default 64, the paper's)")
-    p.add_argument("--label-smoothing", type=float, default=0.0, metavar="EPS",
-                   help="cross-entropy label smoothing (default 0)")
     p.add_argument("--resume", action="store_true",
                    help="go on from OUTPUT.ckpt (written after every epoch) if an earlier run was interrupted")
     p.add_argument("--no-calibrate", action="store_true",
@@ -131,7 +129,7 @@ def _train_view(args) -> int:
     check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                       threads=args.threads, schedule=args.schedule, zoom=args.zoom,
-                      init=args.init, input_size=args.input_size, label_smoothing=args.label_smoothing,
+                      init=args.init, input_size=args.input_size,
                       resume=args.resume)
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot, progress=not args.quiet)
     print(f"{args.output}: validation accuracy {hist.val_acc[-1]:.3f} after {len(hist.val_acc)} epochs "

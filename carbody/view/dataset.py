@@ -327,8 +327,7 @@ def photo_detail_meshes(meshes, control_points_mm: np.ndarray, rng: np.random.Ge
             out.append(patch)
     topo = load_topology()
     cp = np.asarray(control_points_mm, dtype=float)
-    names = [k.name for k in topo.keypoints]
-    corner = cp[topo.keypoint_point_indices[names.index("window_front_bottom")]]
+    corner = cp[topo.junction_point_index("window_front_bottom")]
     half_width = float(cp[:, 0].max())
     length, height = rng.uniform(90, 150), rng.uniform(100, 150)
     y0 = corner[1] + rng.uniform(40, 160)

@@ -320,7 +320,7 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
             (1 when they have none).
     """
     from carbody.view.numpy_net import numpy_weights_for, probabilities
-    from carbody.view.train import to_square_input
+    from carbody.view.train import INPUT_SIZE, to_square_input
 
     boxes = list(boxes) if boxes is not None else [None] * len(images)
     if len(boxes) != len(images):
@@ -332,10 +332,10 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
     if npz is not None:
         from carbody.view.numpy_net import load_numpy_classifier
 
-        size = int(load_numpy_classifier(npz).meta.get("input_size", 64))
+        size = int(load_numpy_classifier(npz).meta.get("input_size", INPUT_SIZE))
     else:
         model, meta = load_classifier(str(weights) if weights else None)
-        size = int(meta.get("input_size", 64))
+        size = int(meta.get("input_size", INPUT_SIZE))
     x = np.stack([to_square_input(pic if b is None else crop_to_box(pic, b), size) for pic, b in zip(pics, boxes)])
     if npz is not None:
         return probabilities(x, npz, mirror_average, temperature)

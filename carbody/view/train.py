@@ -51,7 +51,6 @@ class TrainConfig:
     zoom: bool = False
     init: str | None = None
     input_size: int = INPUT_SIZE
-    label_smoothing: float = 0.0
     resume: bool = False
 
 
@@ -273,7 +272,7 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
                 xb, yb = augment_batch(xb, yb, rng, zoom=config.zoom & ~framed[idx])
             logits = model(to_tensor(xb))
             target = torch.from_numpy(yb)
-            loss = torch.nn.functional.cross_entropy(logits, target, label_smoothing=config.label_smoothing)
+            loss = torch.nn.functional.cross_entropy(logits, target)
             opt.zero_grad()
             loss.backward()
             opt.step()
