@@ -239,8 +239,10 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
 def ghosts_apart(quick: dict, full: dict) -> float:
     """Median distance (px) between the quick fit's and the full fit's predicted keypoints: the
     ghosts and the reprojected marks both draw."""
-    a = {**{n: g["uv"] for n, g in quick["ghosts"].items()}, **{n: m["reprojected"] for n, m in quick["marks"].items()}}
-    b = {**{n: g["uv"] for n, g in full["ghosts"].items()}, **{n: m["reprojected"] for n, m in full["marks"].items()}}
+    def predicted(fit: dict) -> dict:
+        return {**{n: g["uv"] for n, g in fit["ghosts"].items()}, **{n: m["reprojected"] for n, m in fit["marks"].items()}}
+
+    a, b = predicted(quick), predicted(full)
     common = [n for n in a if n in b]
     return float(np.median([np.hypot(*np.subtract(a[n], b[n])) for n in common])) if common else float("nan")
 
