@@ -9,7 +9,8 @@ random with ``--noise`` px of noise, fitted as ``carbody reconstruct`` fits a ph
 every view searched from a flat prior, the distance found, no wheelbase told). Printed: the
 median and mean signed errors of the fitted length and width in wheelbases (the sampled curves'
 extents, as :mod:`carbody.fit.size` measures them), of the wheelbase the proportions give, and
-of the azimuth toward the side (+: the view found more side-on than the truth).
+of the azimuth toward the side (+: the view found more side-on than the truth), and how many
+views were found within 15° of the truth.
 
 Run: python benchmarks/bench_proportions.py [--distance 4000] [--marks 12] [--noise 4] [--every 1]
     [--json OUT.json]
@@ -55,7 +56,7 @@ def fit_rows(t: int, distance_mm: float, marks: int, noise_px: float) -> list[di
                      "length_over_wheelbase_pct": 100.0 * (res.size.proportions["length"] / true_length - 1.0),
                      "width_over_wheelbase_pct": 100.0 * (res.size.proportions["width"] / true_width - 1.0),
                      "wheelbase_pct": 100.0 * (res.wheelbase_mm / wb - 1.0),
-                     "azimuth_toward_side_deg": float(side_on)})
+                     "azimuth_toward_side_deg": float(side_on), "azimuth_error_deg": abs(float(turn))})
     return rows
 
 
@@ -89,6 +90,9 @@ def main(argv=None) -> int:
                        ("azimuth_toward_side_deg", "view toward the side, °")):
         v = np.array([r[key] for r in rows])
         print(f"| {label} | {np.median(v):+.1f} | {v.mean():+.1f} | {v.std():.1f} |")
+    errors = np.array([r["azimuth_error_deg"] for r in rows])
+    print(f"\nviews found within 15° of the truth: {int((errors <= 15).sum())} of {len(rows)}; "
+          f"over 60° off (the car's other side or end): {int((errors > 60).sum())}")
     return 0
 
 

@@ -38,6 +38,11 @@ class FitPolicy:
     refined_candidates: int = 3
     candidate_separation_deg: float = 20.0
 
+    #: … chosen among the scan's best this many (as far apart), ranked by the full solve at the
+    #: marks' noise each reads at its own view: the cheap solve is the library's span alone,
+    #: and a real car, no library car, can fit a few marks best there at the wrong view.
+    ranked_candidates: int = 6
+
     #: Each candidate's local refinement: at most this many cheap solves, then the best one
     #: polished with the full shape model to this many solves and this precision (degrees).
     coarse_evaluations: int = 40

@@ -793,3 +793,22 @@ def test_five_marks_are_enough_for_the_search(library):
     assert len(marks) == 5
     fit = fit_wireframe(marks, View(40, 10), loo)
     assert len(fit.slots) == 5 and not fit.diagnostics.rejected
+
+
+def test_a_few_marks_on_a_car_s_front_keep_the_side_it_is_seen_from(library):
+    """Six marks on a van's front and right side, clicked about as far off as a person's (8 px,
+    1.2 % of its length), no view told: the scan's quick solve (the library's span alone) fits
+    them best from the front-left, its mirror. The full model, at the noise the marks read at
+    each view, ranks the views (search.ranked_fully): the fit keeps the front-right."""
+    from carbody.fit import ViewPrior
+    from carbody.view.labels import CLASS_ANGLES_DEG
+
+    t, loo, truth = _left_out(library, "Daihatsu Hijet Cargo S321V")
+    slots, uv = _observe(truth, View(330, 5), noise=8.0, seed=t)
+    names = {"nose_centre", "front_top_corner_right", "roof_front_corner_right", "a_pillar_base_right",
+             "a_pillar_base", "front_bottom_corner_right"}
+    marks = {s.name: tuple(p) for s, p in zip(slots, uv) if s.name in names}
+    assert len(marks) == 6
+    flat = ViewPrior.from_classifier(CLASS_ANGLES_DEG, np.full(len(CLASS_ANGLES_DEG), 1.0 / len(CLASS_ANGLES_DEG)))
+    fit = fit_wireframe(marks, flat, loo)
+    assert abs((fit.view.azimuth - 330.0 + 180.0) % 360.0 - 180.0) < 15.0, fit.view.azimuth

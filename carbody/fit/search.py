@@ -4,9 +4,13 @@ The scan puts a camera at every ``scan_azimuth_step_deg`` round the car (both si
 classes) at each of ``scan_elevations_deg`` (and, when the camera's distance is to be found, both
 orthographic and at 2.5 wheelbases), and scores each by :class:`~carbody.fit.hypothesis.Scorer`
 with its cheap solve (the library's span alone, one Newton round, at most ``scan_rejections``
-marks left out). The ``refined_candidates`` best, ``candidate_separation_deg`` apart, are
-refined (Nelder–Mead over azimuth, elevation and a pinhole's perspective, the cheap solve), and
-the best of those polished with the full solve. A view told, or the classifier's, enters only as
+marks left out). Its ``ranked_candidates`` best, ``candidate_separation_deg`` apart, are scored
+again with the full solve, each at the marks' noise it reads itself (the cheap solve knows only
+the library's cars; a real car's few marks can fit one of them best at the wrong view). The
+``refined_candidates`` best of those are refined (Nelder–Mead over azimuth, elevation and a
+pinhole's perspective, the cheap solve), ranked by the full solve again, and the best polished
+with it; there the marks' noise is read once more, and the view polished again under it when it
+changed. A view told, or the classifier's, enters only as
 the prior in the score, so a view told 90° or 180° off, the car's other side or end, and a view
 far from a start all come out of the same search. What the scan costs does not depend on the
 marks: every fit costs about the same.
@@ -58,10 +62,11 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
             to start from: their distance and aim), turned round the car and raised to each
             scan elevation here.
         find_perspective: refine the pinholes' perspective too (the distance is to be found).
-        adapt: ``adapt(scorer, hypothesis) -> scorer``, called with the best candidate once the
-            candidates have settled with the cheap solve: a scorer for what that hypothesis
-            says of the marks (:func:`carbody.fit.robust.marks_noise`), under which the
-            candidates settle again when it is another one.
+        adapt: ``adapt(scorer, hypothesis) -> scorer``: a scorer for what a hypothesis says
+            of the marks (:func:`carbody.fit.robust.marks_noise`), called with each of the
+            scan's ``ranked_candidates`` best (:func:`ranked_fully`); the candidates settle and
+            are polished under the best one's, and the view found is polished again under
+            what it says itself.
     """
     policy = scorer.policy
     scanned = []
@@ -78,23 +83,47 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
         raise FitError("no view of any library car explains these keypoints (check their names and places)")
     scanned.sort(key=lambda h: h.score)
     free = ("azimuth", "elevation") + (("perspective",) if find_perspective else ())
-    candidates = distinct(scanned, policy.refined_candidates, policy.candidate_separation_deg)
+    pool = distinct(scanned, max(policy.ranked_candidates, policy.refined_candidates), policy.candidate_separation_deg)
 
-    def settled(scorer: Scorer) -> list[Hypothesis]:
-        return [refine(scorer, c, free, cheap=True, evaluations=policy.coarse_evaluations, tolerance=0.5)
-                for c in candidates]
-
-    coarse = settled(scorer)
-    if adapt is not None:
-        adapted = adapt(scorer, min(coarse, key=lambda h: h.score))
-        if adapted is not scorer:
-            scorer, coarse = adapted, settled(adapted)
-    k = int(np.argmin([h.score for h in coarse]))
+    scorer, order = ranked_fully(scorer, pool, adapt)
+    candidates = [pool[i] for i in order[:policy.refined_candidates]]
+    coarse = [refine(scorer, c, free, cheap=True, evaluations=policy.coarse_evaluations, tolerance=0.5)
+              for c in candidates]
+    # the settled candidates ranked by the full solve too
+    full = [scorer.hypothesis(c.view, cheap=False) for c in coarse]
+    k = int(np.argmin([np.inf if h is None else h.score for h in full]))
     # polished from where the cheap solve settled and from the scan's view: the full solve's
     # evidence has its own small valleys, and the cheap one's optimum can sit in another
     polished = [refine(scorer, start, free, cheap=False, evaluations=policy.polish_evaluations,
                        tolerance=policy.polish_tolerance_deg) for start in (coarse[k], candidates[k])]
-    return min(polished, key=lambda h: h.score), scanned, scorer
+    best = min(polished, key=lambda h: h.score)
+    if adapt is not None:
+        # the marks' noise read again where the view settled: at the scan's coarse view the marks
+        # fit worse and read noisier, and a car fitted to noisier marks keeps less of them
+        adapted = adapt(scorer, best)
+        if adapted is not scorer:
+            scorer = adapted
+            best = refine(scorer, scorer.hypothesis(best.view, cheap=False) or best, free, cheap=False,
+                          evaluations=policy.polish_evaluations, tolerance=policy.polish_tolerance_deg)
+    return best, scanned, scorer
+
+
+def ranked_fully(scorer: Scorer, hypotheses: list[Hypothesis], adapt=None) -> tuple[Scorer, list[int]]:
+    """The scorer to go on with, and the order of ``hypotheses``, best first by the full solve's
+    score at their views.
+
+    With ``adapt``, each is scored at the marks' noise it reads itself, and the scorer is the
+    best one's: the view and the marks' noise are found together (type-II maximum likelihood over
+    both). Read at one view, a few marks' noise comes out as small as that view lets them fit,
+    and every other view is judged by it."""
+    scored = []
+    for i, h in enumerate(hypotheses):
+        own = scorer if adapt is None else adapt(scorer, h)
+        full = own.hypothesis(h.view, cheap=False)
+        scored.append((np.inf if full is None else full.score, i, own))
+    scored.sort(key=lambda s: (s[0], s[1]))
+    best = scored[0][2] if np.isfinite(scored[0][0]) else scorer
+    return best, [i for _, i, _ in scored]
 
 
 def distinct(hypotheses: list[Hypothesis], count: int, separation_deg: float) -> list[Hypothesis]:
