@@ -12,7 +12,10 @@ extents, as :mod:`carbody.fit.size` measures them), of the wheelbase the proport
 of the azimuth toward the side (+: the view found more side-on than the truth), and how many
 views were found within 15° of the truth.
 
-Run: python benchmarks/bench_proportions.py [--distance 4000] [--marks 12] [--noise 4] [--every 1]
+``--front`` keeps only the marks a person sees best on the car's front (nose, bonnet and bumper
+corners, windshield corners) instead: the photo marked only there.
+
+Run: python benchmarks/bench_proportions.py [--distance 4000] [--marks 12 | --front] [--noise 4] [--every 1]
     [--json OUT.json]
 """
 from __future__ import annotations
@@ -33,8 +36,14 @@ VIEWS = (35, 55, 305, 325, 145, 215)
 ELEVATION_DEG = 5.0
 
 
-def fit_rows(t: int, distance_mm: float, marks: int, noise_px: float) -> list[dict]:
-    """One left-out template's rows, one per view."""
+#: ``--front``: the marks a person sees best on a car's front (a photo marked only there), by
+#: their left names; both twins are kept where the view sees them.
+FRONT_MARKS = ("nose_centre", "front_top_corner", "roof_front_corner", "a_pillar_base", "front_bottom_corner")
+
+
+def fit_rows(t: int, distance_mm: float, marks: int, noise_px: float, only: tuple[str, ...] = ()) -> list[dict]:
+    """One left-out template's rows, one per view (``only``: the marks of these left names and
+    their twins, at the views that see five of them or more, instead of ``marks`` at random)."""
     from carbody.fit import FitOptions, ViewPrior, fit_wireframe
     from carbody.view.labels import CLASS_ANGLES_DEG
     from carbody.wireframe import sample_curves
@@ -49,6 +58,10 @@ def fit_rows(t: int, distance_mm: float, marks: int, noise_px: float) -> list[di
     for azimuth in VIEWS:
         kps, size, _ = synthetic_view(truth, azimuth, rng, ELEVATION_DEG, distance_mm * 1000.0 / wb, noise_px)
         keep = rng.choice(sorted(kps), size=min(marks, len(kps)), replace=False)
+        if only:
+            keep = [k for k in sorted(kps) if k.removesuffix("_right") in only]
+            if len(keep) < 5:
+                continue
         res = fit_wireframe({k: kps[k] for k in keep}, flat, loo, image_size=size, options=options)
         turn = (res.view.azimuth - azimuth + 180.0) % 360.0 - 180.0
         side_on = turn if (azimuth % 180.0) < 90.0 else -turn
@@ -66,6 +79,8 @@ def main(argv=None) -> int:
     ap.add_argument("--marks", type=int, default=12, help="visible keypoints kept at random per view")
     ap.add_argument("--noise", type=float, default=4.0, help="marking noise, px (1000 px wide image)")
     ap.add_argument("--every", type=int, default=1, help="every n-th template (1: all)")
+    ap.add_argument("--front", action="store_true",
+                    help="instead of --marks at random, only the front's marks (FRONT_MARKS) the view sees")
     ap.add_argument("--json", help="write the rows here")
     args = ap.parse_args(argv)
     from threadpoolctl import threadpool_limits
@@ -76,11 +91,12 @@ def main(argv=None) -> int:
     rows = []
     with threadpool_limits(1):
         for t in range(0, len(load_library().template_names), args.every):
-            rows += fit_rows(t, args.distance, args.marks, args.noise)
+            rows += fit_rows(t, args.distance, args.marks, args.noise, FRONT_MARKS if args.front else ())
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
-    print(f"# {len(rows)} fits: {len(rows) // len(VIEWS)} templates left out x {len(VIEWS)} views, "
-          f"{args.marks} marks, {args.noise:g} px noise, camera {args.distance:.0f} mm away; "
+    marks = "the front's marks only" if args.front else f"{args.marks} marks"
+    print(f"# {len(rows)} fits: {len({r['template'] for r in rows})} templates left out x "
+          f"{len({r['azimuth'] for r in rows})} views, {marks}, {args.noise:g} px noise, camera {args.distance:.0f} mm away; "
           f"{time.perf_counter() - start:.0f} s\n")
     print("| signed error | median | mean | sd |")
     print("|---|---|---|---|")

@@ -8,8 +8,8 @@ marks left out). Its ``ranked_candidates`` best, ``candidate_separation_deg`` ap
 again with the full solve, each at the marks' noise it reads itself (the cheap solve knows only
 the library's cars; a real car's few marks can fit one of them best at the wrong view). The
 ``refined_candidates`` best of those are refined (Nelder–Mead over azimuth, elevation and a
-pinhole's perspective, the cheap solve), ranked by the full solve again, and the best polished
-with it; there the marks' noise is read once more, and the view polished again under it when it
+pinhole's perspective, the cheap solve), ranked by the full solve at the better of where each
+started and where it settled, and the best polished with it from both; there the marks' noise is read once more, and the view polished again under it when it
 changed. A view told, or the classifier's, enters only as
 the prior in the score, so a view told 90° or 180° off, the car's other side or end, and a view
 far from a start all come out of the same search. What the scan costs does not depend on the
@@ -89,9 +89,14 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
     candidates = [pool[i] for i in order[:policy.refined_candidates]]
     coarse = [refine(scorer, c, free, cheap=True, evaluations=policy.coarse_evaluations, tolerance=0.5)
               for c in candidates]
-    # the settled candidates ranked by the full solve too
-    full = [scorer.hypothesis(c.view, cheap=False) for c in coarse]
-    k = int(np.argmin([np.inf if h is None else h.score for h in full]))
+    # each candidate ranked by the full solve at the better of where it started and where the
+    # cheap solve settled it (the two starts it is polished from): the cheap solve's optimum
+    # can sit where the full model fits worse than at the start
+    def full_score(view: View) -> float:
+        h = scorer.hypothesis(view, cheap=False)
+        return np.inf if h is None else h.score
+
+    k = int(np.argmin([min(full_score(c.view), full_score(s.view)) for c, s in zip(coarse, candidates)]))
     # polished from where the cheap solve settled and from the scan's view: the full solve's
     # evidence has its own small valleys, and the cheap one's optimum can sit in another
     polished = [refine(scorer, start, free, cheap=False, evaluations=policy.polish_evaluations,
