@@ -287,9 +287,14 @@ def test_a_stiffer_refit_takes_the_marks_the_fit_kept(first_library, monkeypatch
     rec = carbody.reconstruct(picture, marks, view=165, elevation_deg=6.0, library=library.without(name))
     report = rec.report()
     assert report["fit_fallback"] is not None
-    assert list(report["fit"]["rejected_keypoints"]) == ["rear_bottom_corner_right"]
+    # the fit may also leave out a true mark the car it finds passes far from (the pickup's tail
+    # top, 45 px): the stiffer fit takes neither
+    rejected = set(report["fit"]["rejected_keypoints"])
+    assert "rear_bottom_corner_right" in rejected and len(rejected) <= 2, rejected
+    assert set(report["fit"]["residual_px"]) == set(marks) - rejected
     assert report["fit"]["residual_px_mean"] < 30, report["fit"]["residual_px_mean"]
-    assert "left out as misplaced: rear_bottom_corner_right" in rec.summary(report)
+    said = [line for line in rec.summary(report).splitlines() if "left out as misplaced:" in line]
+    assert len(said) == 1 and "rear_bottom_corner_right" in said[0], said
 
 
 def test_a_wireframe_whose_region_folds_is_surfaced_as_fitted(first_library):
