@@ -87,17 +87,21 @@ def leave_out_misplaced(scorer, view: View, kept: np.ndarray, solution, limit: i
     return kept, solution
 
 
-def marks_noise(scorer, hypothesis) -> tuple[float, float]:
+def marks_noise(scorer, hypothesis, coarse: bool = False) -> tuple[float, float]:
     """How far the marks stray from the library, and how: (the noise factor on λ's standard
     deviation, ``noise_factors``; the joint field's scale on its amplitude, ``field_scales``)
     under which the marks a hypothesis explains are likeliest at its view (type-II maximum
     likelihood: the evidence in pixels, normalised for the noise, compares them). A car unlike
     every template misses its marks in a pattern the field follows (features shifted along the
-    car together); a person's clicks stray one by one, as noise."""
+    car together); a person's clicks stray one by one, as noise. ``coarse``: every other value
+    of each list (ends kept), a third of the solves, to compare views by."""
     best, choice = None, (1.0, 1.0)
     scales = scorer.policy.field_scales if scorer.options.joint_field and scorer.options.method != "paper" else (1.0,)
+    factors = scorer.policy.noise_factors
+    if coarse:
+        scales, factors = scales[::2], factors[::2]
     for c in scales:
-        for f in scorer.policy.noise_factors:
+        for f in factors:
             try:
                 sol = scorer.with_noise(f, c).solve(hypothesis.view, hypothesis.kept)
             except (FitError, AngleError):

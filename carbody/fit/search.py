@@ -9,8 +9,8 @@ again with the full solve, each at the marks' noise it reads itself (the cheap s
 the library's cars; a real car's few marks can fit one of them best at the wrong view). The
 ``refined_candidates`` best of those are refined (Nelder–Mead over azimuth, elevation and a
 pinhole's perspective, the cheap solve), ranked by the full solve at the better of where each
-started and where it settled, and the best polished with it from both; there the marks' noise is read once more, and the view polished again under it when it
-changed. A view told, or the classifier's, enters only as
+started and where it settled, and the best polished with it from both, under the marks' noise
+read once more (on the full grid) at the better of the two. A view told, or the classifier's, enters only as
 the prior in the score, so a view told 90° or 180° off, the car's other side or end, and a view
 far from a start all come out of the same search. What the scan costs does not depend on the
 marks: every fit costs about the same.
@@ -62,11 +62,10 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
             to start from: their distance and aim), turned round the car and raised to each
             scan elevation here.
         find_perspective: refine the pinholes' perspective too (the distance is to be found).
-        adapt: ``adapt(scorer, hypothesis) -> scorer``: a scorer for what a hypothesis says
-            of the marks (:func:`carbody.fit.robust.marks_noise`), called with each of the
+        adapt: ``adapt(scorer, hypothesis, coarse=False) -> scorer``: a scorer for what a
+            hypothesis says of the marks (:func:`carbody.fit.robust.marks_noise`), called with each of the
             scan's ``ranked_candidates`` best (:func:`ranked_fully`); the candidates settle and
-            are polished under the best one's, and the view found is polished again under
-            what it says itself.
+            are polished under what the chosen one says itself.
     """
     policy = scorer.policy
     scanned = []
@@ -96,34 +95,32 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
         h = scorer.hypothesis(view, cheap=False)
         return np.inf if h is None else h.score
 
-    k = int(np.argmin([min(full_score(c.view), full_score(s.view)) for c, s in zip(coarse, candidates)]))
+    scores = [(full_score(c.view), full_score(s.view)) for c, s in zip(coarse, candidates)]
+    k = int(np.argmin([min(pair) for pair in scores]))
+    if adapt is not None:
+        # the marks' noise read again, on the full grid, where the chosen candidate fits best:
+        # at the scan's coarse view the marks fit worse and read noisier, and a car fitted to
+        # noisier marks keeps less of them
+        scorer = adapt(scorer, coarse[k] if scores[k][0] <= scores[k][1] else candidates[k])
     # polished from where the cheap solve settled and from the scan's view: the full solve's
     # evidence has its own small valleys, and the cheap one's optimum can sit in another
     polished = [refine(scorer, start, free, cheap=False, evaluations=policy.polish_evaluations,
                        tolerance=policy.polish_tolerance_deg) for start in (coarse[k], candidates[k])]
-    best = min(polished, key=lambda h: h.score)
-    if adapt is not None:
-        # the marks' noise read again where the view settled: at the scan's coarse view the marks
-        # fit worse and read noisier, and a car fitted to noisier marks keeps less of them
-        adapted = adapt(scorer, best)
-        if adapted is not scorer:
-            scorer = adapted
-            best = refine(scorer, scorer.hypothesis(best.view, cheap=False) or best, free, cheap=False,
-                          evaluations=policy.polish_evaluations, tolerance=policy.polish_tolerance_deg)
-    return best, scanned, scorer
+    return min(polished, key=lambda h: h.score), scanned, scorer
 
 
 def ranked_fully(scorer: Scorer, hypotheses: list[Hypothesis], adapt=None) -> tuple[Scorer, list[int]]:
     """The scorer to go on with, and the order of ``hypotheses``, best first by the full solve's
     score at their views.
 
-    With ``adapt``, each is scored at the marks' noise it reads itself, and the scorer is the
+    With ``adapt``, each is scored at the marks' noise it reads itself (``adapt``'s coarse
+    grid: the noise is read again where the view settles), and the scorer is the
     best one's: the view and the marks' noise are found together (type-II maximum likelihood over
     both). Read at one view, a few marks' noise comes out as small as that view lets them fit,
     and every other view is judged by it."""
     scored = []
     for i, h in enumerate(hypotheses):
-        own = scorer if adapt is None else adapt(scorer, h)
+        own = scorer if adapt is None else adapt(scorer, h, coarse=True)
         full = own.hypothesis(h.view, cheap=False)
         scored.append((np.inf if full is None else full.score, i, own))
     scored.sort(key=lambda s: (s[0], s[1]))

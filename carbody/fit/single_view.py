@@ -221,11 +221,11 @@ def _located(scorer: Scorer, cameras: list[View], plan: CameraPlan, prior: ViewP
     return best, None, scorer, []
 
 
-def _at_marks_noise(scorer: Scorer, hypothesis: Hypothesis) -> Scorer:
+def _at_marks_noise(scorer: Scorer, hypothesis: Hypothesis, coarse: bool = False) -> Scorer:
     """The scorer at what the marks say of themselves at a hypothesis' view (their click noise,
-    the car's own features: :func:`~carbody.fit.robust.marks_noise`), or ``scorer`` itself when
-    that is what it already assumes."""
-    noise, field = marks_noise(scorer, hypothesis)
+    the car's own features: :func:`~carbody.fit.robust.marks_noise`, on its coarse grid when
+    ``coarse``), or ``scorer`` itself when that is what it already assumes."""
+    noise, field = marks_noise(scorer, hypothesis, coarse)
     return scorer if (noise, field) == (scorer.noise_factor, scorer.field_scale) else scorer.with_noise(noise, field)
 
 
