@@ -57,6 +57,7 @@ def fit_rows(t: int, distance_mm: float, marks: int, noise_px: float, only: tupl
     rows = []
     for azimuth in VIEWS:
         kps, size, _ = synthetic_view(truth, azimuth, rng, ELEVATION_DEG, distance_mm * 1000.0 / wb, noise_px)
+        # drawn with ``only`` too, so that every view's noise is the same in both kinds of run
         keep = rng.choice(sorted(kps), size=min(marks, len(kps)), replace=False)
         if only:
             keep = [k for k in sorted(kps) if k.removesuffix("_right") in only]

@@ -10,10 +10,10 @@ the library's cars; a real car's few marks can fit one of them best at the wrong
 ``refined_candidates`` best of those are refined (Nelder–Mead over azimuth, elevation and a
 pinhole's perspective, the cheap solve), ranked by the full solve at the better of where each
 started and where it settled, and the best polished with it from both, under the marks' noise
-read once more (on the full grid) at the better of the two. A view told, or the classifier's, enters only as
-the prior in the score, so a view told 90° or 180° off, the car's other side or end, and a view
-far from a start all come out of the same search. What the scan costs does not depend on the
-marks: every fit costs about the same.
+read once more (on the full grid) at the better of the two. A view told, or the classifier's,
+enters only as the prior in the score, so a view told 90° or 180° off, the car's other side or
+end, and a view far from a start all come out of the same search. What the scan costs does not
+depend on the marks: every fit costs about the same.
 """
 from __future__ import annotations
 
@@ -63,9 +63,9 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
             scan elevation here.
         find_perspective: refine the pinholes' perspective too (the distance is to be found).
         adapt: ``adapt(scorer, hypothesis, coarse=False) -> scorer``: a scorer for what a
-            hypothesis says of the marks (:func:`carbody.fit.robust.marks_noise`), called with each of the
-            scan's ``ranked_candidates`` best (:func:`ranked_fully`); the candidates settle and
-            are polished under what the chosen one says itself.
+            hypothesis says of the marks (:func:`carbody.fit.robust.marks_noise`), called with
+            each of the scan's ``ranked_candidates`` best (:func:`ranked_fully`); the candidates
+            settle and are polished under what the chosen one says itself.
     """
     policy = scorer.policy
     scanned = []
@@ -114,10 +114,10 @@ def ranked_fully(scorer: Scorer, hypotheses: list[Hypothesis], adapt=None) -> tu
     score at their views.
 
     With ``adapt``, each is scored at the marks' noise it reads itself (``adapt``'s coarse
-    grid: the noise is read again where the view settles), and the scorer is the
-    best one's: the view and the marks' noise are found together (type-II maximum likelihood over
-    both). Read at one view, a few marks' noise comes out as small as that view lets them fit,
-    and every other view is judged by it."""
+    grid: the noise is read again where the view settles), and the scorer is the best one's:
+    the view and the marks' noise are found together (type-II maximum likelihood over both).
+    Read at one view, a few marks' noise comes out as small as that view lets them fit, and
+    every other view is judged by it."""
     scored = []
     for i, h in enumerate(hypotheses):
         own = scorer if adapt is None else adapt(scorer, h, coarse=True)
