@@ -259,6 +259,11 @@ class FitPolicy:
     #: 20° off it, 5° of azimuth stretch it by a quarter).
     wheel_aspects: tuple[float, ...] = (0.62, 0.7, 0.79, 0.89, 1.0, 1.12, 1.26, 1.41)
 
+    #: A parked car's front wheels are often turned: up to this many degrees either way
+    #: (:func:`carbody.fit.wheels.wheel_distortions`); the stretches tried lie this factor apart.
+    wheel_max_steer_deg: float = 20.0
+    wheel_aspect_step: float = 1.12
+
     #: At least this share of the warped patch must lie on the photo (else the wheel is cut off).
     wheel_min_inside: float = 0.5
 

@@ -55,11 +55,13 @@ def offset_for(points: np.ndarray) -> np.ndarray:
     return np.array(SIZE) / 2 - (uv.min(axis=0) + uv.max(axis=0)) / 2
 
 
-def drawn(points: np.ndarray, offset: np.ndarray, tyre: float | None) -> np.ndarray:
+def drawn(points: np.ndarray, offset: np.ndarray, tyre: float | None, view: View = VIEW,
+          steer_deg: float = 0.0) -> np.ndarray:
     """(h, w, 3) uint8 RGB: the car's regions (both halves) in a dark blue paint on a light
-    wall and a grey floor, and, given the tyre radius, its wheels on top: a black tyre, a
-    silver rim (0.62 of the tyre) with five dark spokes' gaps and a dark hub cap, each a
-    circle in its side plane about its hub (:func:`~carbody.fit.wheels.hub_points`)."""
+    wall and a grey floor, seen from ``view``, and, given the tyre radius, its wheels on top: a
+    black tyre, a silver rim (0.62 of the tyre) with five dark spokes' gaps and a dark hub cap,
+    each a circle about its hub (:func:`~carbody.fit.wheels.hub_points`) in its side plane, the
+    front wheels' turned ``steer_deg`` about the vertical (+: their fronts toward x > 0)."""
     import cv2
 
     w, h = SIZE
@@ -69,27 +71,30 @@ def drawn(points: np.ndarray, offset: np.ndarray, tyre: float | None) -> np.ndar
     for side in (np.ones(3), MIRROR):
         for region in load_topology().regions:
             loop = np.concatenate([(curves[c][::-1] if rev else curves[c])[:-1] for c, rev in region.loop]) * side
-            cv2.fillPoly(image, [np.round(project(loop, VIEW, SCALE, offset) * 16).astype(np.int32)],
+            cv2.fillPoly(image, [np.round(project(loop, view, SCALE, offset) * 16).astype(np.int32)],
                          (40, 55, 110), cv2.LINE_AA, shift=4)
     if tyre is not None:
         angle = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+        forward = np.array([0.0, 1.0, 0.0])
 
         def arc(radius, t):
-            return radius * np.stack([np.zeros_like(t), np.cos(t), np.sin(t)], axis=1)
+            return radius * (np.cos(t)[:, None] * forward + np.sin(t)[:, None] * np.array([0.0, 0.0, 1.0]))
 
         def disc(hub, radius, colour):
             ring = hub + arc(radius, angle)
-            cv2.fillPoly(image, [np.round(project(ring, VIEW, SCALE, offset) * 16).astype(np.int32)], colour,
+            cv2.fillPoly(image, [np.round(project(ring, view, SCALE, offset) * 16).astype(np.int32)], colour,
                          cv2.LINE_AA, shift=4)
 
-        for hub in hub_points(points):
+        for name, hub in zip(WHEELS, hub_points(points)):
+            turn = np.radians(steer_deg if name.startswith("front") else 0.0)
+            forward = np.array([np.sin(turn), np.cos(turn), 0.0])
             if hub[0] > 0:  # the near side's (the far side's hide behind the body)
                 disc(hub, tyre, (20, 20, 20))
                 disc(hub, 0.62 * tyre, (190, 190, 195))
                 for k in range(5):  # the gaps between the spokes: annular sectors
                     a = (np.linspace(0.15, 0.85, 12) + k) * 2 * np.pi / 5
                     gap = hub + np.concatenate([arc(0.2 * tyre, a), arc(0.52 * tyre, a[::-1])])
-                    cv2.fillPoly(image, [np.round(project(gap, VIEW, SCALE, offset) * 16).astype(np.int32)],
+                    cv2.fillPoly(image, [np.round(project(gap, view, SCALE, offset) * 16).astype(np.int32)],
                                  (60, 60, 65), cv2.LINE_AA, shift=4)
                 disc(hub, 0.12 * tyre, (70, 70, 75))
     rng = np.random.default_rng(3)
@@ -122,6 +127,22 @@ def test_a_drawn_car_s_hubs_are_found_within_two_pixels_from_where_a_fit_puts_th
     assert sorted(f.wheel for f in found) == sorted(truth)
     for f in found:
         assert np.linalg.norm(f.uv - truth[f.wheel]) < 2.0, (f.wheel, f.uv, truth[f.wheel])
+
+
+@pytest.mark.parametrize("steer_deg", [25.0, 30.0])
+def test_a_turned_front_wheel_seen_near_the_front_is_found_within_two_pixels(lifted, steer_deg):
+    """Parked cars' front wheels are often turned; near a front view that stretches the wheel in
+    the warped patch by half or more, beyond what the view's own error does."""
+    points, tyre = lifted
+    view = View(20.0, 8.0)
+    uv = project(np.concatenate([points, points * MIRROR]), view, SCALE)
+    offset = np.array(SIZE) / 2 - (uv.min(axis=0) + uv.max(axis=0)) / 2
+    photo = drawn(points, offset, tyre, view, steer_deg)
+    shifted = offset + np.array([0.1, -0.35]) * SCALE * (tyre + 60.0)
+    found = {f.wheel: f for f in find_wheels(photo, points.ravel(), view, SCALE, shifted, FIT_POLICY)}
+    truth = project(hub_points(points)[0], view, SCALE, offset)
+    assert "front_left" in found
+    assert np.linalg.norm(found["front_left"].uv - truth) < 2.0, (found["front_left"].uv, truth)
 
 
 def test_a_photo_without_wheels_adds_no_rows_and_leaves_the_fit_unchanged(lifted, library):

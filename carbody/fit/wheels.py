@@ -17,8 +17,9 @@ photo shows the wheels. Three steps:
    circle adds its share above a floor, up to a cap (:func:`concentric_score`), so the hub,
    where several concentric circles meet, stands out from a single round thing (a lamp, a
    badge), from spokes' and panels' straight edges, and from clutter. The view found is a few
-   degrees off, which stretches the wheel in the patch: the patch is tried stretched along the
-   car by several factors (``wheel_aspects``), and the hub is finally the centre of the ellipse
+   degrees off, and a parked car's front wheels are often turned, which stretch and shear the
+   wheel in the patch: the patch is tried undistorted by each way they can
+   (:func:`wheel_distortions`), and the hub is finally the centre of the ellipse
    that the edges along the strongest circle, the rim's, follow (:func:`rim_ellipse_centre`).
    A hub is found when its score is high (``wheel_min_score``) and clearly above the best
    elsewhere in the window (``wheel_min_margin``). A wheel the camera sees nearly edge-on, one
@@ -172,8 +173,8 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
             continue
         toward = d if view.distance is None else \
             np.asarray(view.aim) + view.distance * d - hub  # a pinhole sees each hub from its own side
-        facing = float(toward[0] * np.sign(hub[0]) / np.linalg.norm(toward))
-        if facing < policy.wheel_min_facing:
+        distortions = wheel_distortions(toward, np.sign(hub[0]), name.startswith("front"), policy)
+        if not distortions:
             continue  # edge-on, or its inner side: the body and the tyre's tread hide the hub
         centre = to_px(hub)
         if not (0 <= centre[0] < w and 0 <= centre[1] < h):
@@ -183,7 +184,7 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
         if radius_px * policy.wheel_tyre_share < policy.wheel_min_radius_px:
             continue
         try:
-            hit = _find_hub(grey, to_px, hub, radius, radius_px, policy)
+            hit = _find_hub(grey, to_px, hub, radius, radius_px, policy, distortions)
         except AngleError:  # the patch reaches behind a camera close by: no wheel to see there
             continue
         if hit is not None:
@@ -191,8 +192,43 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
     return found
 
 
+def wheel_distortions(toward: np.ndarray, side: float, steers: bool, policy: FitPolicy) -> list[tuple[float, float]]:
+    """The (aspect, shear) pairs of :func:`wheel_patch` that a wheel's search tries: those that
+    turn the wheel, as the photo shows it, back into a circle in the warped patch.
+
+    The patch is the photo warped onto the car's side plane through the hub, seen along
+    ``toward`` (3,) (the way to the camera, car frame). A front wheel may be steered by δ (up to
+    ``wheel_max_steer_deg`` either way; a rear wheel by none): its circle then lies in a plane
+    turned by δ about the vertical, and the warp shows it stretched along the car by
+    f = cos δ − sin δ · t_y/t_x and sheared by sin δ · t_z/t_x (t = ``toward``). Near a front
+    view, t_y/t_x is large: 20° of steering stretches the wheel by half or more. Each δ whose
+    wheel shows its outer face (``side``: +1 the car's left, −1 its right) at least
+    ``wheel_min_facing`` gives aspect 1/f; the view found a few degrees off stretches it by each
+    of ``wheel_aspects`` more. The aspects are taken a factor ``wheel_aspect_step`` apart over
+    that whole range, each with the shear of the steering nearest it. An empty list: the wheel
+    shows no face to the camera whichever way it is steered."""
+    t = np.asarray(toward, float) / np.linalg.norm(toward)
+    if not t[0] * side > 0:
+        return []  # the side plane is seen from inside: the warp would mirror it
+    limit = np.radians(policy.wheel_max_steer_deg) if steers else 0.0
+    steer = np.linspace(-limit, limit, 2 * int(np.ceil(np.degrees(limit) / 5.0)) + 1)
+    facing = side * (np.cos(steer) * t[0] - np.sin(steer) * t[1])
+    keep = facing >= policy.wheel_min_facing
+    if not keep.any():
+        return []
+    steer, f = steer[keep], facing[keep] / (side * t[0])  # f = cos δ − sin δ · t_y / t_x
+    aspect = 1.0 / f
+    shear = np.sin(steer) * t[2] / t[0] / f
+    factors = np.asarray(policy.wheel_aspects, float)
+    low, high = np.log(aspect.min() * factors.min()), np.log(aspect.max() * factors.max())
+    count = int(np.ceil((high - low) / np.log(policy.wheel_aspect_step))) + 1
+    grid = np.exp(np.linspace(low, high, count)) if count > 1 else np.exp([low])
+    nearest = np.abs(np.log(grid)[:, None] - np.log(aspect)[None]).argmin(axis=1)
+    return [(float(a), float(shear[i])) for a, i in zip(grid, nearest)]
+
+
 def wheel_patch(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, half: float, aspect: float,
-                reduce: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                reduce: float = 1.0, shear: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The photo warped onto the wheel's side plane round its hub.
 
     Args:
@@ -200,7 +236,8 @@ def wheel_patch(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, half: f
         to_px: car-frame points (n, 3) → photo pixels (n, 2).
         hub: (3,) the hub; radius: the arch's radius (its units; the patch has ``PATCH_ARCH_PX``
             pixels per radius); half: the patch's half side, arch radii.
-        aspect: the patch's stretch along the car (y).
+        aspect: the patch's stretch along the car (y); shear: how far the plane's z moves down
+            per unit along the car, undoing a steered wheel's tilt (:func:`wheel_distortions`).
     Returns:
         (patch (n, n) float32, valid (n, n) bool: inside the photo, H (3, 3): patch pixels →
         photo pixels).
@@ -211,7 +248,8 @@ def wheel_patch(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, half: f
     unit = radius / PATCH_ARCH_PX  # car units per patch pixel, up the plane
 
     def plane(c: np.ndarray, r: np.ndarray) -> np.ndarray:
-        return np.stack([np.full(len(c), hub[0]), hub[1] + (c - n / 2) * unit / aspect, hub[2] - (r - n / 2) * unit], 1)
+        along = (c - n / 2) * unit / aspect
+        return np.stack([np.full(len(c), hub[0]), hub[1] + along, hub[2] - (r - n / 2) * unit - shear * along], 1)
 
     corners = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
     photo = to_px(plane(corners[:, 0], corners[:, 1]))
@@ -322,9 +360,11 @@ def concentric_score(support: np.ndarray, floor: float, cap: float) -> np.ndarra
     return np.clip(support - floor, 0.0, cap - floor).sum(axis=-1)
 
 
-def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px: float, policy: FitPolicy):
+def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px: float, policy: FitPolicy,
+              distortions: list[tuple[float, float]]):
     """(hub (2,) photo px, score, runner-up's score) of the best concentric circles in the window
-    round the predicted hub, or None when none is clear (module docstring)."""
+    round the predicted hub, the patch warped by each of ``distortions`` ((aspect, shear) pairs,
+    :func:`wheel_distortions`), or None when none is clear (module docstring)."""
     import cv2
 
     window = policy.wheel_window  # arch radii round the predicted hub
@@ -336,8 +376,8 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
     radii_px = np.arange(policy.wheel_radii[0] * PATCH_ARCH_PX, policy.wheel_radii[1] * PATCH_ARCH_PX, 1.0)
     floor, cap = policy.wheel_circle_floor, policy.wheel_circle_cap
     best = None
-    for aspect in policy.wheel_aspects:
-        patch, valid, H = wheel_patch(small, to_px, hub, radius, half, aspect, reduce)
+    for aspect, shear in distortions:
+        patch, valid, H = wheel_patch(small, to_px, hub, radius, half, aspect, reduce, shear)
         if valid.mean() < policy.wheel_min_inside:
             return None  # the wheel is mostly off the photo
         edges = patch_edges(patch, valid)
