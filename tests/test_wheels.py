@@ -145,6 +145,22 @@ def test_a_turned_front_wheel_seen_near_the_front_is_found_within_two_pixels(lif
     assert np.linalg.norm(found["front_left"].uv - truth) < 2.0, (found["front_left"].uv, truth)
 
 
+def test_a_front_wheel_seen_from_a_camera_close_by_is_still_looked_for(lifted):
+    """A camera 1.6 wheelbases from the car's middle, 25° off its front (a phone held near the
+    bonnet): the patch stretched most along the car reaches the camera. The stretches that do
+    not are tried; before, the wheel was not looked for at all."""
+    points, tyre = lifted
+    view = View(25.0, 8.0, 0.0, 1600.0, (0.0, 500.0, 250.0))
+    uv = project(np.concatenate([points, points * MIRROR]), view, SCALE)
+    offset = np.array(SIZE) / 2 - (uv.min(axis=0) + uv.max(axis=0)) / 2
+    photo = drawn(points, offset, tyre, view)
+    shifted = offset + np.array([0.1, -0.35]) * SCALE * (tyre + 60.0)
+    found = {f.wheel: f for f in find_wheels(photo, points.ravel(), view, SCALE, shifted, FIT_POLICY)}
+    truth = project(hub_points(points)[0], view, SCALE, offset)
+    assert "front_left" in found
+    assert np.linalg.norm(found["front_left"].uv - truth) < 2.0, (found["front_left"].uv, truth)
+
+
 def test_a_photo_without_wheels_adds_no_rows_and_leaves_the_fit_unchanged(lifted, library):
     points, _ = lifted
     offset = offset_for(points)

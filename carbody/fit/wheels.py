@@ -183,10 +183,7 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
         radius_px = radius * scale * k
         if radius_px * policy.wheel_tyre_share < policy.wheel_min_radius_px:
             continue
-        try:
-            hit = _find_hub(grey, to_px, hub, radius, radius_px, policy, distortions)
-        except AngleError:  # the patch reaches behind a camera close by: no wheel to see there
-            continue
+        hit = _find_hub(grey, to_px, hub, radius, radius_px, policy, distortions)
         if hit is not None:
             found.append(WheelFound(name, *hit))
     return found
@@ -377,7 +374,10 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
     floor, cap = policy.wheel_circle_floor, policy.wheel_circle_cap
     best = None
     for aspect, shear in distortions:
-        patch, valid, H = wheel_patch(small, to_px, hub, radius, half, aspect, reduce, shear)
+        try:
+            patch, valid, H = wheel_patch(small, to_px, hub, radius, half, aspect, reduce, shear)
+        except AngleError:  # stretched far along the car, the patch reaches a camera close by
+            continue
         if valid.mean() < policy.wheel_min_inside:
             return None  # the wheel is mostly off the photo
         edges = patch_edges(patch, valid)
