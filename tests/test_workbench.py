@@ -210,22 +210,13 @@ print("RESULT " + json.dumps({{"good": good, "bad": bad, "events": events, "tick
                               "surfacing the editable body"]
 
 
-#: A carbody command for the GUI test: ``reconstruct`` writes its stage lines and a prepared
-#: reconstruction (``$FAKE_RECONSTRUCTION``) into ``-o``; every other subcommand is the real
-#: carbody's. Each call is logged (``$FAKE_LOG``) with the time it started and ended.
-FAKE_CARBODY = """
-import os, shutil, subprocess, sys, time
+#: The real carbody, each call logged with its start and end (time.monotonic: one clock per
+#: machine), so the test can tell which ran in the job's QProcesses and when.
+LOGGED_CARBODY = """
+import os, subprocess, sys, time
 start = time.monotonic()
-if sys.argv[1] == "reconstruct":
-    for stage in ("view", "fit", "surfaces", "write"):
-        print(f"carbody: stage {stage}", file=sys.stderr, flush=True)
-        time.sleep(0.4)
-    out = sys.argv[sys.argv.index("-o") + 1]
-    shutil.copytree(os.environ["FAKE_RECONSTRUCTION"], out, dirs_exist_ok=True)
-    code = 0
-else:
-    code = subprocess.call([sys.executable, "-m", "carbody", *sys.argv[1:]])
-with open(os.environ["FAKE_LOG"], "a") as log:
+code = subprocess.call([sys.executable, "-m", "carbody", *sys.argv[1:]])
+with open(os.environ["CARBODY_CALL_LOG"], "a") as log:
     log.write(f"{sys.argv[1]} {start} {time.monotonic()}\\n")
 sys.exit(code)
 """
@@ -290,29 +281,31 @@ QtCore.QTimer.singleShot(180000, give_up)
 
 @pytest.mark.skipif(not (shutil.which("xvfb-run") and shutil.which("freecad")),
                     reason="needs FreeCAD's GUI (freecad-python3) and xvfb-run")
-def test_the_guis_reconstruct_runs_in_the_background_and_brings_the_car_in_coloured(tmp_path, example_reconstruction):
-    """FreeCAD's GUI (under xvfb-run), the Reconstruct command clicked: the stages come into the
-    status bar and the report view while the event loop keeps turning; the job reads the
-    wireframe back and surfaces the editable body in the background, so bringing the car in
-    runs no carbody (no wait in FreeCAD's own thread); the body's faces and each region object
-    show their region's colour."""
-    prepared, out = tmp_path / "prepared", tmp_path / "out"
-    example_reconstruction.write(prepared)
-    fake, log, result = tmp_path / "fake_carbody.py", tmp_path / "calls.log", tmp_path / "gui.json"
-    fake.write_text(FAKE_CARBODY)
+def test_the_guis_reconstruct_runs_in_the_background_and_brings_the_car_in_coloured(tmp_path):
+    """FreeCAD's GUI (under xvfb-run), the Reconstruct command clicked on the shipped example, the
+    real carbody run: the stages come into the status bar and the report view while the event
+    loop keeps turning; the job reads the wireframe back and surfaces the editable body in the
+    background, so bringing the car in runs no carbody (no wait in FreeCAD's own thread); the
+    body's faces and each region object show their region's colour."""
+    from carbody.pipeline import STAGES
+
+    out = tmp_path / "out"
+    logged, log, result = tmp_path / "logged_carbody.py", tmp_path / "calls.log", tmp_path / "gui.json"
+    logged.write_text(LOGGED_CARBODY)
     script = tmp_path / "gui_reconstruct.py"
     script.write_text(GUI_SCRIPT.format(workbench=str(WORKBENCH), image=str(REPO / "examples" / "car.png"),
                                         keypoints=str(REPO / "examples" / "car_keypoints.json"), out=str(out),
                                         result=str(result)))
-    env = {**os.environ, "CARBODY_COMMAND": f"{sys.executable} {fake}", "FAKE_RECONSTRUCTION": str(prepared),
-           "FAKE_LOG": str(log), "QTWEBENGINE_DISABLE_SANDBOX": "1", "HOME": str(tmp_path / "home")}
+    env = {**os.environ, "CARBODY_COMMAND": f"{sys.executable} {logged}", "CARBODY_CALL_LOG": str(log),
+           "QTWEBENGINE_DISABLE_SANDBOX": "1", "HOME": str(tmp_path / "home")}
     proc = subprocess.run(["xvfb-run", "-a", "freecad", str(script)], capture_output=True, text=True,
                           timeout=300, env=env, cwd=tmp_path)
     assert result.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
     r = json.loads(result.read_text())
     said = [text for _, text in r["said"]]
     assert not r.get("timed_out"), said
-    stages = [f"carbody: stage {s}" for s in ("view", "fit", "surfaces", "write")]
+    names = (*STAGES, "write")
+    stages = [f"carbody: stage {name} ({k}/{len(names)})" for k, name in enumerate(names, 1)]
     # (FreeCAD's console shows each report-view line in the status bar too: a line may come twice)
     assert list(dict.fromkeys(t for t in said if t in stages)) == stages, said
     assert "carbody: reading the wireframe back" in said and "carbody: surfacing the editable body" in said
