@@ -238,9 +238,9 @@ class FitPolicy:
     # ---- the wheels in the photo (carbody.fit.wheels)
 
     #: A wheel is looked for when the camera sees its outer face at least this much (the cosine
-    #: between the face's normal and the way to the camera; 0.3: 17° off edge-on): nearer
-    #: edge-on the tyre's tread and the body hide the hub, and the view's error stretches the
-    #: warped wheel most.
+    #: between the face's normal and the way to the camera; 0.3: 17° off edge-on), a front
+    #: wheel turned any way up to ``wheel_max_steer_deg``: nearer edge-on the tyre's tread and
+    #: the body hide the hub, and the view's error stretches the warped wheel most.
     wheel_min_facing: float = 0.3
 
     #: … and when its tyre (this share of the arch's radius) is at least this many photo pixels
