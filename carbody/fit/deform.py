@@ -120,6 +120,8 @@ class DeformationField:
         Returns:
             (3·P,) float, the deformed shape.
         """
+        from scipy.linalg import cho_factor, cho_solve
+
         from carbody.fit.solve import camera_rows
 
         keypoints = shape.reshape(-1, 3)[point_indices]
@@ -136,9 +138,10 @@ class DeformationField:
         for amplitude in LOCAL_AMPLITUDES:
             for factor in NOISE_FACTORS:
                 K = broad + amplitude ** 2 * local + (factor * noise * scale) ** 2 * eye
-                alpha = np.linalg.solve(K, r)
+                chol = cho_factor(K, lower=True)  # (one factorisation: the solve and the determinant)
+                alpha = cho_solve(chol, r)
                 # −log marginal likelihood of the residuals, up to a constant
-                nll = 0.5 * r @ alpha + np.sum(np.log(np.diag(np.linalg.cholesky(K))))
+                nll = 0.5 * r @ alpha + np.sum(np.log(np.diag(chol[0])))
                 if best is None or nll < best[0]:
                     best = (nll, amplitude, alpha)
         _, amplitude, alpha = best
