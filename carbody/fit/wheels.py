@@ -54,6 +54,10 @@ from carbody.wireframe import POINTS_PER_CURVE
 #: The four wheels, in :func:`hub_map`'s order: front then rear, the car's left (x > 0) first.
 WHEELS = ("front_left", "front_right", "rear_left", "rear_right")
 
+#: The turns of a front wheel that :func:`wheel_distortions` reads its stretches and shears at
+#: lie this many degrees apart (only the range and the shears come from them).
+STEER_STEP_DEG = 5.0
+
 #: Side length of the warped patch per arch radius, and the arch radius in patch pixels: the
 #: circles' votes need a few tens of pixels of radius, and more only costs time.
 PATCH_ARCH_PX = 40.0
@@ -208,7 +212,7 @@ def wheel_distortions(toward: np.ndarray, side: float, steers: bool, policy: Fit
     if not t[0] * side > 0:
         return []  # the side plane is seen from inside: the warp would mirror it
     limit = np.radians(policy.wheel_max_steer_deg) if steers else 0.0
-    steer = np.linspace(-limit, limit, 2 * int(np.ceil(np.degrees(limit) / 5.0)) + 1)
+    steer = np.linspace(-limit, limit, 2 * int(np.ceil(np.degrees(limit) / STEER_STEP_DEG)) + 1)
     facing = side * (np.cos(steer) * t[0] - np.sin(steer) * t[1])
     keep = facing >= policy.wheel_min_facing
     if not keep.any():
