@@ -70,6 +70,8 @@ Definitions (per photo):
   in brackets); wall time median and max; the fit and surface stages' wall times
   (``report["timings_s"]``), and before them the load stage's: OCCT and scipy loaded once per
   process, which a warm process (batch, the marking page) no longer pays.
+- **Hubs found**: the wheels' hubs the fit found in the photo (``report["fit"]["wheels"]``),
+  counted per photo and in all.
 - **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``
   not null).
 - **Camera check**: the marks kept by the fit, reprojected here from ``keypoints_mm`` with the
@@ -397,8 +399,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "view_found_deg": None, "view_diff_deg": None, "view_source": None, "residual_px_mean": None,
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
            "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
-           "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "fallback": None,
-           "camera_check_px": None,
+           "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
+           "fallback": None, "camera_check_px": None,
            "mirrored_half": None, "stage_s": None}
     if outcome != "body":
         return row
@@ -413,7 +415,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
                mirrored_half=bool(cp[:, 0].max() < MIRRORED_MM < -cp[:, 0].min()),
                fallback=report["fit_fallback"],
                camera_check_px=camera_check_px(report, photo.meta["keypoints"]),
-               stage_s=report.get("timings_s"))
+               stage_s=report.get("timings_s"), hubs_found=len((fit.get("wheels") or {}).get("wheels") or []))
     if row["view_estimate_deg"] is not None:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
     for key in ("length", "width", "wheelbase"):
@@ -603,6 +605,8 @@ def summarise(rows: list[dict]) -> dict:
         "median_wheel_dv_pct": median_or_none(r["wheel_dv_pct"] for r in rows),
         "median_centroid_to_hub_pct": median_or_none(r["centroid_to_hub_pct"] for r in rows),
         "centroid_to_hub_measured": sum(r["centroid_to_hub_pct"] is not None for r in rows),
+        "photos_with_hubs": sum(bool(r["hubs_found"]) for r in rows),
+        "hubs_found": sum(r["hubs_found"] or 0 for r in rows),
         "median_time_s": statistics.median(times) if times else None, "max_time_s": max(times, default=None),
         "median_cpu_s": statistics.median(cpu) if cpu else None, "max_cpu_s": max(cpu, default=None),
         **{f"median_{k}_s": median_or_none((r["stage_s"] or {}).get(k) for r in rows) for k in ("load", "fit", "surfaces")},
@@ -647,6 +651,7 @@ def summary_table(s: dict) -> str:
              f"| the measure's own error: median distance of the annotated wheels' centroids from the hubs "
              f"the fit found, % | {fmt(s['median_centroid_to_hub_pct'], '.1f') or '–'} "
              f"(of {s['centroid_to_hub_measured']}) |",
+             f"| photos with hubs found in them (hubs in all) | {s['photos_with_hubs']} ({s['hubs_found']}) |",
              f"| time per photo (wall), median / max | {fmt(s['median_time_s'], '.1f')} / "
              f"{fmt(s['max_time_s'], '.1f')} s |",
              f"| CPU time per photo (user + system), median / max | {fmt(s['median_cpu_s'], '.1f')} / "
