@@ -223,7 +223,7 @@ def wheel_distortions(toward: np.ndarray, side: float, steers: bool, policy: Fit
     factors = np.asarray(policy.wheel_aspects, float)
     low, high = np.log(aspect.min() * factors.min()), np.log(aspect.max() * factors.max())
     count = int(np.ceil((high - low) / np.log(policy.wheel_aspect_step))) + 1
-    grid = np.exp(np.linspace(low, high, count)) if count > 1 else np.exp([low])
+    grid = np.exp(np.linspace(low, high, count))
     nearest = np.abs(np.log(grid)[:, None] - np.log(aspect)[None]).argmin(axis=1)
     return [(float(a), float(shear[i])) for a, i in zip(grid, nearest)]
 
@@ -383,7 +383,7 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
         except AngleError:  # stretched far along the car, the patch reaches a camera close by
             continue
         if valid.mean() < policy.wheel_min_inside:
-            return None  # the wheel is mostly off the photo
+            continue  # mostly off the photo: the wheel cut off by its frame, or the patch stretched past it
         edges = patch_edges(patch, valid)
         rough = hough_centres(edges, radii_px, floor, cap, window * PATCH_ARCH_PX).astype(np.float32)
         n = patch.shape[0]
