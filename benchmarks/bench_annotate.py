@@ -39,7 +39,9 @@ Definitions:
   the five hand marks farthest apart in the photo, then each time the hand mark whose addition
   brings the full fit nearest the hand fit (distances over τ3 plus over τ2), until the fit is
   the same. Even a page that never asked for what the annotator left out would need about
-  that many actions.
+  that many actions. With ``--with-wheels`` every fit of it (the hand fit and τ too) is given
+  the photo, so the wheels' hubs found there join the marks, as ``carbody reconstruct`` fits:
+  does the photo's own evidence let fewer marks reach the hand fit?
 - **Facing** (``--facing``): on every real photo, the keypoints the full fit of its hand marks
   shows on the photo, by how squarely they face the camera
   (:func:`carbody.annotate.guide.facing_cosines`), and the share the annotator marked.
@@ -57,7 +59,7 @@ Definitions:
 
     python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
                                         [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
-                                        [--oracle] [--facing] [--no-guided] [--to-the-end]
+                                        [--oracle [--with-wheels]] [--facing] [--no-guided] [--to-the-end]
 
 Real photos are read where they are (``--data``, default ``../shared/realphotos``); a photo or
 folder that is missing is skipped with a note. Run it niced on a shared machine: the load
@@ -117,11 +119,12 @@ def angular(a: float, b: float) -> float:
 class Reference:
     """The fit of every hand mark, and how far re-marking everything moves it (τ3, τ2)."""
 
-    def __init__(self, marks: dict, image_size, prior, accept: float, draws: int, seed: int = 0):
+    def __init__(self, marks: dict, image_size, prior, accept: float, draws: int, seed: int = 0, fit_marks=None):
         from carbody.annotate import live_fit
 
+        fit_marks = fit_marks or (lambda m: live_fit.fit_marks(m, image_size, prior, quick=False).fit)
         self.image_size, self.prior = image_size, prior
-        self.fit = live_fit.fit_marks(marks, image_size, prior, quick=False).fit
+        self.fit = fit_marks(marks)
         self.shown = live_fit.visible_names(self.fit)
         self.k3, self.k2 = self.keypoints(self.fit)
         self.length_px = float(np.ptp(np.array(live_fit.projected_wireframe(self.fit)).reshape(-1, 2)[:, 0]))
@@ -131,7 +134,7 @@ class Reference:
         spread = []
         for _ in range(draws):
             noisy = {n: tuple(np.clip(np.add(uv, rng.normal(0.0, sigma, 2)), 0, [w, h])) for n, uv in marks.items()}
-            fit = live_fit.fit_marks(noisy, image_size, prior, quick=False).fit
+            fit = fit_marks(noisy)
             spread.append(self.distances(fit))
         self.tau3, self.tau2 = (float(v) for v in np.mean(spread, axis=0))
         self.spread = spread
@@ -289,7 +292,9 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
         session.wait_started(120)  # the classifier's prior, as the guided session has it
         size, prior = session.image_size, session.prior
         session.close()
-    ref = Reference(hand, size, prior, args.accept, args.draws)
+    fit_marks = (lambda m: live_fit.fit_marks(m, size, prior, quick=False).fit) if not args.with_wheels \
+        else wheels_fit(image, size, prior)
+    ref = Reference(hand, size, prior, args.accept, args.draws, fit_marks=fit_marks)
     names = list(hand)
     uv = np.array([hand[n] for n in names])
     order = [names[int(np.argmax(np.linalg.norm(uv - uv.mean(axis=0), axis=1)))]]
@@ -298,7 +303,7 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
         order.append(names[int(np.argmax(near))])
 
     def distances(chosen):
-        return ref.distances(live_fit.fit_marks({n: hand[n] for n in chosen}, size, prior, quick=False).fit)
+        return ref.distances(fit_marks({n: hand[n] for n in chosen}))
 
     d3, d2 = distances(order)
     while not (d3 <= ref.tau3 and d2 <= ref.tau2) and len(order) < len(names):
@@ -307,8 +312,27 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
         order.append(best)
         if args.verbose:
             print(f"  oracle {name} {len(order):2d} {best:28s} 3D {d3:6.1f} mm  photo {d2:5.1f} px", flush=True)
-    return {"photo": name, "hand": len(hand), "marks": len(order), "order": order,
+    return {"photo": name, "hand": len(hand), "marks": len(order), "order": order, "with_wheels": args.with_wheels,
             "same": bool(d3 <= ref.tau3 and d2 <= ref.tau2), "tau3_mm": ref.tau3, "tau2_px": ref.tau2}
+
+
+def wheels_fit(image: Path, image_size, prior):
+    """marks → the full fit given the photo as well, so the wheels' hubs found in it join the
+    marks (``--with-wheels``; as ``carbody reconstruct`` fits), else as the page's full fit."""
+    from carbody.errors import CarbodyError
+    from carbody.fit import FitOptions, fit_wireframe
+    from carbody.library import default_library
+    from carbody.view.predict import read_image
+
+    rgb = read_image(image)
+
+    def fit(marks):
+        try:
+            return fit_wireframe(dict(marks), prior, default_library(), image_size=image_size,
+                                 options=FitOptions(camera_distance_mm="auto"), photo=rgb)
+        except CarbodyError:
+            return None
+    return fit
 
 
 #: Bins of the facing cosine (:func:`facing_rates`).
@@ -363,6 +387,8 @@ def main(argv=None) -> int:
     parser.add_argument("--json", type=Path, default=None, help="write every figure here")
     parser.add_argument("--verbose", "-v", action="store_true", help="print every action")
     parser.add_argument("--oracle", action="store_true", help="also the fewest hand marks a greedy order needs")
+    parser.add_argument("--with-wheels", action="store_true",
+                        help="the oracle's fits given the photo too: the wheels' hubs found in it join the marks")
     parser.add_argument("--facing", action="store_true",
                         help="also the annotators' share of marked keypoints by how squarely they face the camera")
     parser.add_argument("--no-guided", action="store_true", help="skip the guided sessions and the latencies")
@@ -408,7 +434,8 @@ def main(argv=None) -> int:
               f"{r['actions_to_end']} ({r['accepted']}, {r['hidden']}){' settled' if r['stopped_settled'] else ''} | "
               f"{'yes' if r['same_when_stopped'] else 'no'} | {r['tau3_mm']:.0f} / {r['tau2_px']:.1f} |")
     if oracles:
-        print("\n| photo | hand marks | the greedy order's marks to the same fit | τ3 mm / τ2 px |")
+        wheels = " (the photo's wheels fitted too)" if args.with_wheels else ""
+        print(f"\n| photo | hand marks | the greedy order's marks to the same fit{wheels} | τ3 mm / τ2 px |")
         print("|---|---|---|---|")
         for o in oracles:
             marks = f"{o['marks']} ({o['marks'] / o['hand']:.0%})" if o["same"] else f"not within {o['marks']}"
