@@ -119,12 +119,11 @@ def angular(a: float, b: float) -> float:
 class Reference:
     """The fit of every hand mark, and how far re-marking everything moves it (τ3, τ2)."""
 
-    def __init__(self, marks: dict, image_size, prior, accept: float, draws: int, seed: int = 0, fit_marks=None):
+    def __init__(self, marks: dict, image_size, prior, accept: float, draws: int, seed: int = 0, photo=None):
         from carbody.annotate import live_fit
 
-        fit_marks = fit_marks or (lambda m: live_fit.fit_marks(m, image_size, prior, quick=False).fit)
-        self.image_size, self.prior = image_size, prior
-        self.fit = fit_marks(marks)
+        self.image_size, self.prior, self.photo = image_size, prior, photo
+        self.fit = self.fit_marks(marks)
         self.shown = live_fit.visible_names(self.fit)
         self.k3, self.k2 = self.keypoints(self.fit)
         self.length_px = float(np.ptp(np.array(live_fit.projected_wireframe(self.fit)).reshape(-1, 2)[:, 0]))
@@ -134,10 +133,16 @@ class Reference:
         spread = []
         for _ in range(draws):
             noisy = {n: tuple(np.clip(np.add(uv, rng.normal(0.0, sigma, 2)), 0, [w, h])) for n, uv in marks.items()}
-            fit = fit_marks(noisy)
+            fit = self.fit_marks(noisy)
             spread.append(self.distances(fit))
         self.tau3, self.tau2 = (float(v) for v in np.mean(spread, axis=0))
         self.spread = spread
+
+    def fit_marks(self, marks: dict):
+        """The full fit of ``marks`` (given the photo too when the reference was), or None."""
+        from carbody.annotate import live_fit
+
+        return live_fit.fit_marks(marks, self.image_size, self.prior, quick=False, photo=self.photo).fit
 
     def keypoints(self, fit) -> tuple[np.ndarray, np.ndarray]:
         from carbody.annotate import live_fit
@@ -292,9 +297,9 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
         session.wait_started(120)  # the classifier's prior, as the guided session has it
         size, prior = session.image_size, session.prior
         session.close()
-    fit_marks = (lambda m: live_fit.fit_marks(m, size, prior, quick=False).fit) if not args.with_wheels \
-        else wheels_fit(image, size, prior)
-    ref = Reference(hand, size, prior, args.accept, args.draws, fit_marks=fit_marks)
+    from carbody.view.predict import read_image
+
+    ref = Reference(hand, size, prior, args.accept, args.draws, photo=read_image(image) if args.with_wheels else None)
     names = list(hand)
     uv = np.array([hand[n] for n in names])
     order = [names[int(np.argmax(np.linalg.norm(uv - uv.mean(axis=0), axis=1)))]]
@@ -303,7 +308,7 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
         order.append(names[int(np.argmax(near))])
 
     def distances(chosen):
-        return ref.distances(fit_marks({n: hand[n] for n in chosen}))
+        return ref.distances(ref.fit_marks({n: hand[n] for n in chosen}))
 
     d3, d2 = distances(order)
     while not (d3 <= ref.tau3 and d2 <= ref.tau2) and len(order) < len(names):
@@ -314,25 +319,6 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
             print(f"  oracle {name} {len(order):2d} {best:28s} 3D {d3:6.1f} mm  photo {d2:5.1f} px", flush=True)
     return {"photo": name, "hand": len(hand), "marks": len(order), "order": order, "with_wheels": args.with_wheels,
             "same": bool(d3 <= ref.tau3 and d2 <= ref.tau2), "tau3_mm": ref.tau3, "tau2_px": ref.tau2}
-
-
-def wheels_fit(image: Path, image_size, prior):
-    """marks → the full fit given the photo as well, so the wheels' hubs found in it join the
-    marks (``--with-wheels``; as ``carbody reconstruct`` fits), else as the page's full fit."""
-    from carbody.errors import CarbodyError
-    from carbody.fit import FitOptions, fit_wireframe
-    from carbody.library import default_library
-    from carbody.view.predict import read_image
-
-    rgb = read_image(image)
-
-    def fit(marks):
-        try:
-            return fit_wireframe(dict(marks), prior, default_library(), image_size=image_size,
-                                 options=FitOptions(camera_distance_mm="auto"), photo=rgb)
-        except CarbodyError:
-            return None
-    return fit
 
 
 #: Bins of the facing cosine (:func:`facing_rates`).

@@ -85,7 +85,8 @@ class LiveFit:
 
 
 def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int], prior,
-              scan_from: View | None = None, quick: bool = True, library=None) -> LiveFit:
+              scan_from: View | None = None, quick: bool = True, library=None,
+              photo: np.ndarray | None = None) -> LiveFit:
     """Fit the marks (camera distance found, marks estimated robustly, as ``carbody fit``).
 
     Args:
@@ -96,6 +97,8 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
         scan_from: the quick fit scans at this view's elevation and perspective (the last
             fit's, or the view guessed before one); None scans them all.
         quick: the quick policy (:func:`quick_policy`) or the full one (the default's).
+        photo: the photo, (h, w, 3) uint8 RGB: the wheels' hubs found in it join the marks, as
+            ``carbody reconstruct`` fits; None (the page's fits) the marks alone.
     """
     from carbody.errors import CarbodyError
     from carbody.fit import FitOptions, fit_wireframe
@@ -110,7 +113,7 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
         library = default_library()
     try:
         fit = fit_wireframe(dict(marks), prior, library, image_size=image_size,
-                            options=FitOptions(camera_distance_mm="auto", policy=policy))
+                            options=FitOptions(camera_distance_mm="auto", policy=policy), photo=photo)
     except CarbodyError as exc:
         return LiveFit(None, str(exc), quick, time.perf_counter() - start, time.thread_time() - cpu, image_size)
     return LiveFit(fit, None, quick, time.perf_counter() - start, time.thread_time() - cpu, image_size)
