@@ -14,10 +14,14 @@ with the photo-matching deformation (default) and, where marked "no deform", wit
 ``--elevation`` views from above; ``--distance`` photographs with a pinhole camera;
 ``--other-end`` runs only the check that a view near the front or rear is not the car's other end;
 ``--orthographic-check`` only the check that a photo fitted as orthographic was taken from close by;
-``--view-off DEG,...`` only views told that far off (what the fit refuses, naming which view).
+``--view-off DEG,...`` only views told that far off (what the fit refuses, naming which view);
+``--real-marks [DIR]`` only the check that the view found does not lean toward the car's end or
+side when library cars are seen from close by and marked only where each real photo of ``DIR``
+(``../shared/realphotos``) was marked, at its estimated view.
 
 Run: python benchmarks/bench_fit_accuracy.py [--quick] [--sweep] [--elevation DEG] [--distance MM]
-    [--known-only] [--other-end] [--orthographic-check] [--view-off DEG,...] [--json out.json]
+    [--known-only] [--other-end] [--orthographic-check] [--view-off DEG,...] [--real-marks [DIR]]
+    [--json out.json]
 """
 from __future__ import annotations
 
@@ -25,6 +29,7 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -34,6 +39,8 @@ ANGLES = tuple(range(0, 181, 15))
 IMAGE_WIDTH = 1000
 CAR_SPAN = 900
 NOISE_PX = 1.0
+#: The real photos' data (``--real-marks``), where the project's checkout sits beside ``shared``.
+REAL_PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "realphotos"
 OFFSET_DEG = 10.0
 
 
@@ -657,6 +664,73 @@ def table(label: str, rs: list[dict]) -> str:
     return "\n".join(out)
 
 
+#: ``--real-marks``: the synthetic camera's distance in car lengths, its elevation (degrees) and
+#: the marking error (px on a 900 px car: 1 %), as a close photo taken at a person's height.
+REAL_MARKS_DISTANCE, REAL_MARKS_ELEVATION, REAL_MARKS_NOISE = 1.0, 6.0, 9.0
+
+
+def real_mark_sets(data: Path) -> list[tuple[str, float, list[str]]]:
+    """[(photo, estimated view, the names its annotator marked)] for the real photos in ``data``
+    whose estimate is a three-quarter view (``bench_real_photos.view_lean_deg``)."""
+    from bench_real_photos import view_lean_deg
+
+    sets = []
+    for f in sorted(Path(data, "keypoints").glob("*.json")):
+        meta = json.loads(f.read_text())
+        est = meta.get("view_estimate_deg")
+        if est is not None and view_lean_deg(est, est) is not None:
+            sets.append((f.stem, float(est), sorted(meta["keypoints"])))
+    return sets
+
+
+def run_real_marks(args) -> list[dict]:
+    """Template t, left out, seen from close by (:data:`REAL_MARKS_DISTANCE`) at each real photo's
+    estimated view and marked only where that photo's annotator marked, fitted as a user's photo
+    (no view told, the camera's distance found): how far the view found leans toward the car's end
+    (−) or side (+) of the true one (``bench_real_photos.view_lean_deg``)."""
+    t, sets = args
+    from bench_real_photos import view_lean_deg
+
+    from carbody.errors import CarbodyError
+    from carbody.fit import fit_wireframe
+
+    name, loo, truth, wb, _ = left_out(t)
+    rng = np.random.default_rng(3000 + t)
+    length = float(np.ptp(truth[:, 1]))
+    rows = []
+    for photo, est, names in sets:
+        kps, size, _ = synthetic_view(truth, est, rng, REAL_MARKS_ELEVATION, REAL_MARKS_DISTANCE * length,
+                                      noise_px=REAL_MARKS_NOISE)
+        marks = {n: uv for n, uv in kps.items() if n in names}
+        row = {"template": name, "photo": photo, "estimate": est, "marks": len(marks), "lean": None, "failed": None}
+        try:
+            fit = fit_wireframe(marks, None, loo, image_size=size, camera_distance_mm="auto")
+            row.update(view=fit.view.azimuth, lean=view_lean_deg(fit.view.azimuth, est))
+        except CarbodyError as e:
+            row["failed"] = str(e)
+        rows.append(row)
+    return rows
+
+
+def real_marks_table(rows: list[dict]) -> str:
+    """Per photo the median lean over the templates, then the whole check's summary."""
+    photos = sorted({r["photo"] for r in rows}, key=lambda p: [r["photo"] for r in rows].index(p))
+    lines = ["| photo | estimate ° | marks | median lean ° | leans beyond 5° to the end / side | failed |",
+             "|---|---|---|---|---|---|"]
+    for p in photos:
+        rs = [r for r in rows if r["photo"] == p]
+        lean = [r["lean"] for r in rs if r["lean"] is not None]
+        lines.append(f"| {p.removeprefix('cps_')} | {rs[0]['estimate']:g} | {rs[0]['marks']} | "
+                     f"{np.median(lean):+.1f} | {sum(v < -5 for v in lean)} / {sum(v > 5 for v in lean)} | "
+                     f"{sum(r['failed'] is not None for r in rs)} |")
+    lean = np.array([r["lean"] for r in rows if r["lean"] is not None])
+    lines.append(f"\n{len(rows)} fits ({len(photos)} mark sets × {len(rows) // max(len(photos), 1)} templates): "
+                 f"median lean {np.median(lean):+.1f}°, mean {lean.mean():+.1f}°; beyond 5° toward the end "
+                 f"{int((lean < -5).sum())}, toward the side {int((lean > 5).sum())}; beyond 15° "
+                 f"{int((np.abs(lean) > 15).sum())}; failed {sum(r['failed'] is not None for r in rows)}")
+    return "\n".join(lines)
+
+
 def run_check(run, jobs: list, title: str, table, args) -> int:
     """A check's runs over the templates (``--other-end``, ``--orthographic-check``): its table
     under a title with the time taken, and every row as JSON with ``--json``."""
@@ -723,6 +797,11 @@ def main(argv=None) -> int:
                          "orthographic (asked to check) and finding the distance")
     ap.add_argument("--view-off", metavar="DEG,...",
                     help="only views told this far off (e.g. 0,45,90,135): where the search lands")
+    ap.add_argument("--real-marks", type=Path, nargs="?", const=REAL_PHOTOS, default=None, metavar="DIR",
+                    help="only the check that the view found does not lean on library cars marked as the real "
+                         f"photos' annotators marked (default DIR {REAL_PHOTOS})")
+    ap.add_argument("--real-marks-templates", type=int, default=6, metavar="N",
+                    help="--real-marks: how many left-out templates, spread over the library (default 6)")
     args = ap.parse_args(argv)
     from carbody.library import load_library
 
@@ -758,6 +837,18 @@ def main(argv=None) -> int:
                          f"The car's other end, leave-one-out: {len(templates)} templates, views within the "
                          f"check's range of the front or rear, elevation {args.elevation:g}°, {args.noise:g} px noise",
                          other_end_table, args)
+    if args.real_marks:
+        if not (args.real_marks / "keypoints").is_dir():
+            print(f"bench_fit_accuracy: no real-photo marks at {args.real_marks}", file=sys.stderr)
+            return 2
+        sets = real_mark_sets(args.real_marks)
+        picked = templates[::max(1, len(templates) // args.real_marks_templates)][:args.real_marks_templates]
+        return run_check(run_real_marks, [(t, sets) for t in picked],
+                         f"Real photos' marks on library cars, leave-one-out: {len(picked)} templates × {len(sets)} "
+                         f"three-quarter mark sets, each at its photo's estimated view, camera "
+                         f"{REAL_MARKS_DISTANCE:g} car length away at {REAL_MARKS_ELEVATION:g}° elevation, "
+                         f"{REAL_MARKS_NOISE:g} px noise on a {CAR_SPAN} px car, no view told, distance found",
+                         real_marks_table, args)
     if args.view_off:
         try:
             offsets = tuple(float(v) for v in args.view_off.split(","))

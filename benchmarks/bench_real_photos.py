@@ -66,8 +66,9 @@ Definitions (per photo):
   centroids' mean distance from the hubs the fit found in the photo and trusted (weight over
   0.6), % of S — the measure's own error, independent of the fit's wheel centres.
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
-  without a body is not within); medians over the photos where a figure is defined (the count
-  in brackets); wall time median and max; the fit and surface stages' wall times
+  without a body is not within); on three-quarter views (the estimate 15–75° from both ends),
+  the **lean**: how much nearer the car's end (−) or side (+) the view found is than the
+  estimate; medians over the photos where a figure is defined (the count in brackets); wall time median and max; the fit and surface stages' wall times
   (``report["timings_s"]``), and before them the load stage's: OCCT and scipy loaded once per
   process, which a warm process (batch, the marking page) no longer pays.
 - **Hubs found**: the wheels' hubs the fit found in the photo (``report["fit"]["wheels"]``),
@@ -118,6 +119,10 @@ WHEEL_ANNOTATED, WHEEL_PROJECTED = (255, 255, 255), (0, 140, 255)
 
 #: A view found within this of the estimate counts as right (the estimate itself is ±10°).
 VIEW_OK_DEG = 15.0
+#: The estimates counted as three-quarter views by the lean (degrees from the car's nearer end).
+THREE_QUARTER_DEG = (15.0, 75.0)
+#: A lean counted as one (degrees): half the estimates' ±10°.
+LEAN_NOTED_DEG = 5.0
 
 #: A fitted "left" half reaching no further than this (mm) to x > 0, and further to x < 0, lies
 #: on the right: flagged (``mirrored_half``).
@@ -396,7 +401,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "view_estimate_deg": photo.meta.get("view_estimate_deg"), "image_size_px": size,
            "image_size_from": size_from, "published_mm": published,
            "parts": sorted(photo.parts), "wheels_annotated": len(photo.parts.get("wheel", [])),
-           "view_found_deg": None, "view_diff_deg": None, "view_source": None, "residual_px_mean": None,
+           "view_found_deg": None, "view_diff_deg": None, "view_lean_deg": None, "view_source": None,
+           "residual_px_mean": None,
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
            "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
            "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
@@ -418,6 +424,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
                stage_s=report.get("timings_s"), hubs_found=len((fit.get("wheels") or {}).get("wheels") or []))
     if row["view_estimate_deg"] is not None:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
+        row["view_lean_deg"] = view_lean_deg(found, row["view_estimate_deg"])
     for key in ("length", "width", "wheelbase"):
         row[f"{key}_err_pct"] = pct_error(row["fitted_mm"][key], published.get(key))
     row["iou"], row["wheel_dist_px"], dv_px = how_it_sits(photo, camera, cp)
@@ -564,6 +571,20 @@ def messages_table(rows: list[dict]) -> str:
     return "\n".join(lines) if len(lines) > 2 else ""
 
 
+def end_angle_deg(azimuth: float) -> float:
+    """How far (degrees, 0–90) a view is from the car's nearer end: 0 a front or rear view, 90 a side view."""
+    a = float(azimuth) % 180.0
+    return min(a, 180.0 - a)
+
+
+def view_lean_deg(found: float, estimate: float) -> float | None:
+    """For a three-quarter view (the estimate 15–75° from both ends): the view found, signed, from
+    the car's nearer end less the estimate's (−: found nearer an end than estimated); else None."""
+    if not THREE_QUARTER_DEG[0] <= end_angle_deg(estimate) <= THREE_QUARTER_DEG[1]:
+        return None
+    return end_angle_deg(found) - end_angle_deg(estimate)
+
+
 def median_or_none(values) -> float | None:
     vals = [v for v in values if v is not None]
     return statistics.median(vals) if vals else None
@@ -574,6 +595,7 @@ def summarise(rows: list[dict]) -> dict:
     counts = {o: sum(r["outcome"] == o for r in rows) for o in OUTCOMES}
     viewed = [r for r in rows if r["view_diff_deg"] is not None]
     ok = sum(r["view_diff_deg"] <= VIEW_OK_DEG for r in viewed)
+    leans = [r["view_lean_deg"] for r in rows if r.get("view_lean_deg") is not None]
 
     def med_abs(key):
         return median_or_none(abs(r[key]) if r[key] is not None else None for r in rows)
@@ -590,6 +612,9 @@ def summarise(rows: list[dict]) -> dict:
         "photos": n, "outcomes": counts, "body_pct": 100.0 * counts["body"] / n if n else None,
         "view_within_deg": VIEW_OK_DEG, "view_within": ok, "view_measured": len(viewed),
         "view_within_pct_of_photos": 100.0 * ok / n if n else None,
+        "median_view_lean_deg": median_or_none(leans), "view_lean_measured": len(leans),
+        "view_leans_to_end": sum(v < -LEAN_NOTED_DEG for v in leans),
+        "view_leans_to_side": sum(v > LEAN_NOTED_DEG for v in leans),
         "median_abs_length_err_pct": med_abs("length_err_pct"),
         "median_abs_width_err_pct": med_abs("width_err_pct"),
         "median_abs_wheelbase_err_pct": med_abs("wheelbase_err_pct"),
@@ -631,6 +656,10 @@ def summary_table(s: dict) -> str:
              f"| with a body | {fmt(s['body_pct'])} % |",
              f"| view within {s['view_within_deg']:.0f}° of the estimate | {s['view_within']} of {n} "
              f"({fmt(s['view_within_pct_of_photos'])} %; {s['view_measured']} with a view found) |",
+             f"| three-quarter views ({s['view_lean_measured']}): the view found from the car's nearer end, less "
+             f"the estimate's, median (−: nearer the end); more than {LEAN_NOTED_DEG:.0f}° nearer the end / the side | "
+             f"{fmt(s['median_view_lean_deg'], '.1f', signed=True) or '–'}°; {s['view_leans_to_end']} / "
+             f"{s['view_leans_to_side']} |",
              f"| median residual, % of the car's image size | {fmt(s['median_residual_pct'], '.1f')} |",
              "| median \\|length\\| / \\|width\\| / \\|wheelbase\\| error | "
              f"{fmt(s['median_abs_length_err_pct'], '.1f')} / "

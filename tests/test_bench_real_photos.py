@@ -47,6 +47,13 @@ def test_each_annotated_wheel_takes_its_own_projected_centre(bench):
     assert sorted((i, j) for i, j, _ in bench.wheel_matches(annotated, projected)) == [(0, 0), (1, 1)]
 
 
+def test_the_lean_is_signed_toward_the_cars_nearer_end_on_three_quarter_views_only(bench):
+    assert bench.view_lean_deg(35.0, 50.0) == pytest.approx(-15.0)      # front-left, found nearer the front
+    assert bench.view_lean_deg(305.0, 290.0) == pytest.approx(-15.0)    # front-right, found nearer the front
+    assert bench.view_lean_deg(140.0, 150.0) == pytest.approx(+10.0)    # rear-left, found nearer the side
+    assert bench.view_lean_deg(5.0, 0.0) is None and bench.view_lean_deg(85.0, 90.0) is None
+
+
 def test_a_region_of_a_template_seen_from_the_front_is_the_union_of_its_halves(bench, templates):
     """The windshield's left loop and its mirror, projected, make one symmetric outline whose
     width is the template's windshield base (a_pillar_base on both sides)."""
