@@ -282,12 +282,15 @@ class FitPolicy:
     wheel_candidates: int = 8
 
     #: A hub is found when its score is at least ``wheel_min_score`` (a circle whole all round
-    #: counts about 1.5: more than one such circle) and ``wheel_min_margin`` times the best
-    #: centre more than ``wheel_separation`` arch radii away: clutter and a body panel score
-    #: alike everywhere.
+    #: counts about 1.5: more than one such circle). The centres more than ``wheel_separation``
+    #: arch radii from it and from each other that score within ``wheel_min_margin`` of it are
+    #: its rivals, carried into the fit with it, which weighs each by how well the car fits it.
+    #: More rivals than ``wheel_rivals``: clutter or a body panel, which score alike everywhere;
+    #: no hub.
     wheel_min_score: float = 1.8
     wheel_min_margin: float = 1.5
     wheel_separation: float = 0.35
+    wheel_rivals: int = 2
 
     #: A hub found counts as a mark of this many times the marks' noise (read off the marks); one
     #: the fit puts more than ``wheel_robust_scale`` of those from it is weighted down (Cauchy),

@@ -56,12 +56,13 @@ def offset_for(points: np.ndarray, view: View = VIEW) -> np.ndarray:
 
 
 def drawn(points: np.ndarray, offset: np.ndarray, tyre: float | None, view: View = VIEW,
-          steer_deg: float = 0.0) -> np.ndarray:
+          steer_deg: float = 0.0, decoys: tuple = ()) -> np.ndarray:
     """(h, w, 3) uint8 RGB: the car's regions (both halves) in a dark blue paint on a light
     wall and a grey floor, seen from ``view``, and, given the tyre radius, its wheels on top: a
     black tyre, a silver rim (0.62 of the tyre) with five dark spokes' gaps and a dark hub cap,
     each a circle about its hub (:func:`~carbody.fit.wheels.hub_points`) in its side plane, the
-    front wheels' turned ``steer_deg`` about the vertical (+: their fronts toward x > 0)."""
+    front wheels' turned ``steer_deg`` about the vertical (+: their fronts toward x > 0), and a
+    wheel just like them about each of ``decoys`` ((3,) points, normalised units)."""
     import cv2
 
     w, h = SIZE
@@ -81,7 +82,7 @@ def drawn(points: np.ndarray, offset: np.ndarray, tyre: float | None, view: View
             cv2.fillPoly(image, [np.round(project(points3d, view, SCALE, offset) * 16).astype(np.int32)], colour,
                          cv2.LINE_AA, shift=4)
 
-        for name, hub in zip(WHEELS, hub_points(points)):
+        for name, hub in [*zip(WHEELS, hub_points(points)), *(("decoy", d) for d in decoys)]:
             if hub[0] <= 0:
                 continue  # the far side's hide behind the body
             turn = np.radians(steer_deg if name.startswith("front") else 0.0)
@@ -156,6 +157,30 @@ def test_a_front_wheel_seen_from_a_camera_close_by_is_still_looked_for(lifted):
     not are tried; before, the wheel was not looked for at all."""
     off = front_left_found_off_px(lifted, View(25.0, 8.0, 0.0, 1600.0, (0.0, 500.0, 250.0)))
     assert off is not None and off < 2.0, off
+
+
+def test_a_wheel_alike_beside_a_hub_is_carried_as_its_rival_and_the_marks_pick_the_hub(lifted, library):
+    """A second wheel drawn just like the front one over it, a tyre radius ahead and a third of one
+    higher, hides part of it and scores higher: the search cannot tell which is the hub (it used
+    to give none), so it carries both, and the fit weighs each by how well the car the marks
+    make fits it: the true hub wins and the car sits on it."""
+    points, tyre = lifted
+    offset = offset_for(points)
+    hub = hub_points(points)[0]
+    ahead = hub + [0.0, -tyre, 0.3 * tyre]
+    photo = drawn(points, offset, tyre, decoys=(ahead,))
+    truth, decoy = project(hub, VIEW, SCALE, offset), project(ahead, VIEW, SCALE, offset)
+    shifted = offset + np.array([0.1, -0.35]) * SCALE * (tyre + 60.0)
+    front = {f.wheel: f for f in find_wheels(photo, points.ravel(), VIEW, SCALE, shifted, FIT_POLICY)}["front_left"]
+    centres = [uv for uv, _ in front.candidates()]
+    assert len(centres) == 2
+    assert np.linalg.norm(centres[0] - decoy) < 2.0 and np.linalg.norm(centres[1] - truth) < 3.0
+    fit = fit_wireframe(marks_of(points, offset), VIEW, library, image_size=SIZE, photo=photo,
+                        options=FitOptions(refine=False, camera_distance_mm=None, wheels=True))
+    row = {r["wheel"]: r for r in fit.wheels.wheels}["front_left"]
+    assert np.linalg.norm(np.subtract(row["found_px"], truth)) < 3.0 and len(row["rivals"]) == 1
+    fitted = fit.project_points(hub_points(fit.wireframe.control_points))[0]
+    assert np.linalg.norm(fitted - truth) < 4.0 < np.linalg.norm(fitted - decoy)
 
 
 def test_a_photo_without_wheels_adds_no_rows_and_leaves_the_fit_unchanged(lifted, library):

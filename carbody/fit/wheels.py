@@ -21,10 +21,12 @@ photo shows the wheels. Three steps:
    wheel in the patch: the patch is tried undistorted by each way they can
    (:func:`wheel_distortions`), and the hub is finally the centre of the ellipse
    that the edges along the strongest circle, the rim's, follow (:func:`rim_ellipse_centre`).
-   A hub is found when its score is high (``wheel_min_score``) and clearly above the best
-   elsewhere in the window (``wheel_min_margin``). A wheel the camera sees nearly edge-on, one
-   too small, cut off by the frame or in a patch with no clear circles gives no hub, and no
-   rows.
+   A hub is found when its score is high (``wheel_min_score``). Centres elsewhere in the window
+   that score nearly as well (within ``wheel_min_margin``) are its rivals: a small move of the
+   fit can change which of them scores best, so all are carried into the fit (step 3); more
+   than ``wheel_rivals`` of them is clutter, no hub. A wheel the camera sees nearly edge-on,
+   one too small, cut off by the frame or in a patch with no clear circles gives no hub, and
+   no rows.
 2. :class:`HubTargets`: each hub found is a pseudo-observation of the same linear solve as the
    marks (:func:`carbody.fit.solve.solve_gauss`'s ``hubs``). The hub is a fixed point of every
    library model: its x is the arch top's (the tyre's outer face, which the photo shows), its
@@ -35,7 +37,8 @@ photo shows the wheels. Three steps:
    (:func:`ride_height_direction`, ``wheel_ride_height_sd``).
 3. :func:`follow_wheels` solves with them at the view found, a few times: a hub the marks and
    the prior put far from where it was found is weighted down (Cauchy), so one wrong find
-   cannot bend the car. The view's score stays the marks' own (the wheels shape the car, they
+   cannot bend the car. A hub with rivals shares one hub's weight among its centres, by score
+   times that fit: the car the marks make picks among them (:func:`_with_hubs`). The view's score stays the marks' own (the wheels shape the car, they
    do not choose the view).
 """
 from __future__ import annotations
@@ -130,12 +133,22 @@ class WheelFound:
         uv: (2,) float, the hub, photo pixels.
         score: the concentric circles' score at the hub (:func:`concentric_score`).
         runner_up: the best score more than ``wheel_separation`` arch radii away.
+        rivals: ((2,) photo px, score) of the other centres that score too near the hub's to
+            tell them apart (within ``wheel_min_margin``; at most ``wheel_rivals``): the fit
+            carries them all and weighs each by how well the car fits it (:func:`_with_hubs`).
+            Empty for a clear hub.
     """
 
     wheel: str
     uv: np.ndarray
     score: float
     runner_up: float
+    rivals: tuple = ()
+
+    def candidates(self) -> list[tuple[np.ndarray, float]]:
+        """[((2,) photo px, score)]: the hub found, then its rivals."""
+        return [(np.asarray(self.uv, float), float(self.score))] + [(np.asarray(uv, float), float(sc))
+                                                                      for uv, sc in self.rivals]
 
 
 def grey_photo(image: np.ndarray) -> np.ndarray:
@@ -160,7 +173,7 @@ def find_wheels(image: np.ndarray, shape: np.ndarray, view: View, scale: float, 
         to_photo: (3, 3) from the fit camera's pixels to the photo's (a turned camera), or None.
         wheels: the wheels to look for (names of :data:`WHEELS`).
     Returns:
-        the hubs found, at most one per wheel.
+        the hubs found, at most one per wheel (each with its rivals, if any).
     """
     grey = image if image.ndim == 2 and image.dtype == np.float32 else grey_photo(image)
     h, w = grey.shape
@@ -363,9 +376,11 @@ def concentric_score(support: np.ndarray, floor: float, cap: float) -> np.ndarra
 
 def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px: float, policy: FitPolicy,
               distortions: list[tuple[float, float]]):
-    """(hub (2,) photo px, score, runner-up's score) of the best concentric circles in the window
-    round the predicted hub, the patch warped by each of ``distortions`` ((aspect, shear) pairs,
-    :func:`wheel_distortions`), or None when none is clear (module docstring)."""
+    """(hub (2,) photo px, score, runner-up's score, rivals) of the best concentric circles in the
+    window round the predicted hub, the patch warped by each of ``distortions`` ((aspect, shear)
+    pairs, :func:`wheel_distortions`), or None when none scores high enough (module docstring).
+    Rivals (:attr:`WheelFound.rivals`) are the centres of the hub's patch, apart from it and from
+    each other, that score within ``wheel_min_margin`` of it."""
     import cv2
 
     window = policy.wheel_window  # arch radii round the predicted hub
@@ -402,21 +417,31 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
         at = [i * len(shifts) + int(v.argmax()) for i, v in enumerate(values)]  # each peak's best centre
         scored = [(float(v.max()), *map(float, centres[j]), j) for v, j in zip(values, at)]
         top = max(scored)
-        if best is not None and top[0] <= best[0]:
+        if best is not None and top[0] <= best[0][0]:
             continue
-        runner = max([s for s, c, r, _ in scored if np.hypot(c - top[1], r - top[2])
-                      > policy.wheel_separation * PATCH_ARCH_PX], default=0.0)
-        best = (top[0], runner, np.array(top[1:3]), H, edges, float(radii_px[np.argmax(support[top[3]])]))
+        apart = policy.wheel_separation * PATCH_ARCH_PX
+        runner = max([s for s, c, r, _ in scored if np.hypot(c - top[1], r - top[2]) > apart], default=0.0)
+        near = []  # the centres as clear as the hub, apart from it and from each other
+        for s_, c, r, j in sorted(scored, reverse=True):
+            if s_ * policy.wheel_min_margin > top[0] and \
+                    all(np.hypot(c - c0, r - r0) > apart for _, c0, r0, _ in [top] + near):
+                near.append((s_, c, r, j))
+        best = (top, runner, near, H, edges, support, radii_px)
     if best is None:
         return None
-    score, runner, centre, H, edges, rim = best
-    if score < policy.wheel_min_score or score < policy.wheel_min_margin * runner:
-        return None
-    ellipse = rim_ellipse_centre(edges, centre, rim, policy.wheel_sectors)
-    if ellipse is not None and np.hypot(*(ellipse - centre)) < policy.wheel_separation * PATCH_ARCH_PX:
-        centre = ellipse
-    uv = apply_homography(H, centre + 0.5)  # (pixel centres)
-    return uv, score, runner
+    top, runner, near, H, edges, support, radii_px = best
+    if top[0] < policy.wheel_min_score or len(near) > policy.wheel_rivals:
+        return None  # no clear circles, or clutter: too many centres alike
+
+    def hub_px(centre_score) -> np.ndarray:
+        _, c, r, j = centre_score
+        centre = np.array([c, r])
+        ellipse = rim_ellipse_centre(edges, centre, float(radii_px[np.argmax(support[j])]), policy.wheel_sectors)
+        if ellipse is not None and np.hypot(*(ellipse - centre)) < policy.wheel_separation * PATCH_ARCH_PX:
+            centre = ellipse
+        return apply_homography(H, centre + 0.5)  # (pixel centres)
+
+    return hub_px(top), top[0], runner, tuple((hub_px(n), n[0]) for n in near)
 
 
 def rim_ellipse_centre(edges: PatchEdges, centre: np.ndarray, radius: float, sectors: int,
@@ -502,9 +527,11 @@ class WheelsFit:
 
     Attributes:
         used: whether any hub entered the fit; ``reason`` why not.
-        wheels: one dict per hub found: ``wheel``, ``found_px`` [u, v] (photo), ``score``,
-            ``runner_up``, ``weight`` (its robust weight in the last solve, 0–1), ``before_px`` and
-            ``after_px`` (the fitted car's hub's distance from it before and after).
+        wheels: one dict per hub found: ``wheel``, ``found_px`` [u, v] (photo: of its centres,
+            the one the fit gave most weight), ``score``, ``runner_up``, ``weight`` (its weight
+            in the last solve, 0–1), ``before_px`` and ``after_px`` (the fitted car's hub's
+            distance from it before and after), ``rivals`` (the other centres carried, each
+            ``px`` and ``score``; empty for a clear hub).
         seconds: the search's wall time.
     """
 
@@ -539,41 +566,62 @@ def follow_wheels(scorer, hypothesis, image: np.ndarray, to_photo: np.ndarray | 
             break  # (nothing new: the last solve stands)
         found.update({f.wheel: f for f in again})
         wheels = [found[w] for w in WHEELS if w in found]
-        h, hubs, weight = _with_hubs(scorer, hypothesis, wheels, to_photo, sigma)
+        h, hubs, weight, picked = _with_hubs(scorer, hypothesis, wheels, to_photo, sigma)
     seconds = time.perf_counter() - start
     if hubs is None:
         return hypothesis, WheelsFit(False, "no wheel found in the photo", [], seconds=seconds), None
     index = [WHEELS.index(f.wheel) for f in wheels]
-    targets = hubs.targets[::2]
+    chosen = [f.candidates()[j] for f, j in zip(wheels, picked)]
+    photo_px = np.array([uv for uv, _ in chosen])
+    targets = photo_px if to_photo is None else apply_homography(np.linalg.inv(to_photo), photo_px)
     before = np.linalg.norm(_hubs_px(first, first.view or hypothesis.view)[index] - targets, axis=1)
     after = np.linalg.norm(_hubs_px(h.solution, h.view)[index] - targets, axis=1)
-    rows = [{"wheel": f.wheel, "found_px": [round(float(v), 1) for v in f.uv], "score": round(f.score, 2),
+    px = lambda uv: [round(float(v), 1) for v in uv]  # noqa: E731
+    rows = [{"wheel": f.wheel, "found_px": px(uv), "score": round(score, 2),
              "runner_up": round(f.runner_up, 2), "weight": round(float(wt), 3), "before_px": round(float(b), 1),
-             "after_px": round(float(a), 1)} for f, wt, b, a in zip(wheels, weight, before, after)]
+             "after_px": round(float(a), 1),
+             "rivals": [{"px": px(u), "score": round(sc, 2)} for j, (u, sc) in enumerate(f.candidates()) if j != k]}
+            for f, (uv, score), k, wt, b, a in zip(wheels, chosen, picked, weight, before, after)]
     return h, WheelsFit(True, "", rows, seconds=seconds), hubs
 
 
 def _with_hubs(scorer, hypothesis, wheels: list[WheelFound], to_photo: np.ndarray | None, sigma: float):
-    """(the hypothesis solved with the hubs found, the :class:`HubTargets` of its last solve, their
-    robust weights (n,) in it): ``wheel_passes`` solves, each hub weighted by how far the last
-    one put it from where it was found (Cauchy, at ``wheel_robust_scale`` × its noise ``sigma``
-    px)."""
+    """(the hypothesis solved with the hubs found, the :class:`HubTargets` of its last solve, the
+    weight (n,) in it of each wheel's likeliest centre, the index (n,) of that centre in its
+    :meth:`WheelFound.candidates`): ``wheel_passes`` solves. Each centre is weighted by how far
+    the last solve put its wheel's hub from it (Cauchy, at ``wheel_robust_scale`` × its noise
+    ``sigma`` px), so one wrong find cannot bend the car. A wheel with rivals shares one hub's
+    worth of weight among its centres, in proportion to their scores times that fit (the first
+    solve by their scores alone): the car the marks make picks among centres alike."""
     policy = scorer.policy
-    photo_px = np.array([f.uv for f in wheels])
+    rows = [(i, f.wheel, uv, score) for i, f in enumerate(wheels) for uv, score in f.candidates()]
+    owner = np.array([i for i, *_ in rows])
+    index = [WHEELS.index(w) for _, w, _, _ in rows]
+    photo_px = np.array([uv for *_, uv, _ in rows])
     targets = photo_px if to_photo is None else apply_homography(np.linalg.inv(to_photo), photo_px)
-    index = [WHEELS.index(f.wheel) for f in wheels]
+    scores = np.array([score for *_, score in rows])
+    fits = np.ones(len(rows))  # each centre's Cauchy weight at the last solve
+
+    def shares() -> np.ndarray:  # each centre's share of its wheel: score × fit, normalised per wheel
+        w = scores * fits
+        return w / np.bincount(owner, weights=w)[owner]
+
     marks_own = hypothesis.solution
-    weight = np.ones(len(wheels))
+    found = [WheelFound(w, uv, score, 0.0) for _, w, uv, score in rows]
     for k in range(policy.wheel_passes):
-        hubs = HubTargets.of(wheels, targets, policy.wheel_noise_ratio / np.sqrt(np.maximum(weight, 1e-6)),
+        weight = shares() * fits
+        hubs = HubTargets.of(found, targets, policy.wheel_noise_ratio / np.sqrt(np.maximum(weight, 1e-6)),
                              policy.wheel_ride_height_sd)
         new = scorer.solve(hypothesis.view, hypothesis.kept, hubs=hubs)
         new.evidence, new.evidence_px = marks_own.evidence, marks_own.evidence_px  # the marks' own: the view's score
         h = replace(hypothesis, solution=new, view=new.view or hypothesis.view)
         if k + 1 < policy.wheel_passes:
             miss = np.linalg.norm(_hubs_px(new, h.view)[index] - targets, axis=1)
-            weight = 1.0 / (1.0 + (miss / (policy.wheel_robust_scale * sigma)) ** 2)
-    return h, hubs, weight
+            fits = 1.0 / (1.0 + (miss / (policy.wheel_robust_scale * sigma)) ** 2)
+    share = shares()
+    likeliest = np.array([int(np.flatnonzero(owner == i)[np.argmax(share[owner == i])]) for i in range(len(wheels))])
+    first = np.array([int(np.flatnonzero(owner == i)[0]) for i in range(len(wheels))])
+    return h, hubs, weight[likeliest], likeliest - first
 
 
 def _hubs_px(solution, view: View) -> np.ndarray:
