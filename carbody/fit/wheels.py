@@ -422,14 +422,15 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
         apart = policy.wheel_separation * PATCH_ARCH_PX
         runner = max([s for s, c, r, _ in scored if np.hypot(c - top[1], r - top[2]) > apart], default=0.0)
         near = []  # the centres as clear as the hub, apart from it and from each other
-        for s_, c, r, j in sorted(scored, reverse=True):
-            if s_ * policy.wheel_min_margin > top[0] and \
+        for candidate in sorted(scored, reverse=True):
+            _, c, r, _ = candidate
+            if candidate[0] * policy.wheel_min_margin > top[0] and \
                     all(np.hypot(c - c0, r - r0) > apart for _, c0, r0, _ in [top] + near):
-                near.append((s_, c, r, j))
-        best = (top, runner, near, H, edges, support, radii_px)
+                near.append(candidate)
+        best = (top, runner, near, H, edges, support)
     if best is None:
         return None
-    top, runner, near, H, edges, support, radii_px = best
+    top, runner, near, H, edges, support = best
     if top[0] < policy.wheel_min_score or len(near) > policy.wheel_rivals:
         return None  # no clear circles, or clutter: too many centres alike
 
