@@ -40,8 +40,6 @@ ANGLES = tuple(range(0, 181, 15))
 IMAGE_WIDTH = 1000
 CAR_SPAN = 900
 NOISE_PX = 1.0
-#: The real photos' data (``--real-marks``), where the project's checkout sits beside ``shared``.
-REAL_PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "realphotos"
 OFFSET_DEG = 10.0
 
 
@@ -853,9 +851,12 @@ def main(argv=None) -> int:
                          "orthographic (asked to check) and finding the distance")
     ap.add_argument("--view-off", metavar="DEG,...",
                     help="only views told this far off (e.g. 0,45,90,135): where the search lands")
-    ap.add_argument("--real-marks", type=Path, nargs="?", const=REAL_PHOTOS, default=None, metavar="DIR",
-                    help="only the check that the view found does not lean on library cars marked as the real "
-                         f"photos' annotators marked (default DIR {REAL_PHOTOS})")
+    from bench_real_photos import DATA as real_photos
+
+    ap.add_argument("--real-marks", type=Path, nargs="?", const=real_photos, default=None, metavar="DIR",
+                    help="only the check of the view's lean on the real photos' three-quarter views: their own "
+                         "marks fitted three ways, then library cars marked as they were (default DIR "
+                         f"{real_photos})")
     ap.add_argument("--real-marks-templates", type=int, default=6, metavar="N",
                     help="--real-marks: how many left-out templates, spread over the library (default 6)")
     args = ap.parse_args(argv)
@@ -899,13 +900,12 @@ def main(argv=None) -> int:
             return 2
         sets = real_mark_sets(args.real_marks)
         picked = templates[::max(1, len(templates) // args.real_marks_templates)][:args.real_marks_templates]
-        json_out, args.json = args.json, None
+        no_json = argparse.Namespace(**{**vars(args), "json": None})  # --json holds the library check's rows
         run_check(run_real_marks_own, [(args.real_marks, photo) for photo, _, _ in sets],
                   f"The real photos' own marks ({len(sets)} three-quarter views): the lean as fitted, with the shape "
                   f"prior ×{REAL_MARKS_LOOSE_PRIOR:g}, and from the marks on the car's near half and centre only",
-                  real_marks_own_table, args)
+                  real_marks_own_table, no_json)
         print()
-        args.json = json_out
         return run_check(run_real_marks, [(t, sets) for t in picked],
                          f"Real photos' marks on library cars, leave-one-out: {len(picked)} templates × {len(sets)} "
                          f"three-quarter mark sets, each at its photo's estimated view, camera "

@@ -68,9 +68,10 @@ Definitions (per photo):
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); on three-quarter views (the estimate 15–75° from both ends),
   the **lean**: how much nearer the car's end (−) or side (+) the view found is than the
-  estimate; medians over the photos where a figure is defined (the count in brackets); wall time median and max; the fit and surface stages' wall times
-  (``report["timings_s"]``), and before them the load stage's: OCCT and scipy loaded once per
-  process, which a warm process (batch, the marking page) no longer pays.
+  estimate; medians over the photos where a figure is defined (the count in brackets); wall
+  time median and max; the fit and surface stages' wall times (``report["timings_s"]``), and
+  before them the load stage's: OCCT and scipy loaded once per process, which a warm process
+  (batch, the marking page) no longer pays.
 - **Hubs found**: the wheels' hubs the fit found in the photo (``report["fit"]["wheels"]``),
   counted per photo and in all.
 - **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``

@@ -38,8 +38,8 @@ photo shows the wheels. Three steps:
 3. :func:`follow_wheels` solves with them at the view found, a few times: a hub the marks and
    the prior put far from where it was found is weighted down (Cauchy), so one wrong find
    cannot bend the car. A hub with rivals shares one hub's weight among its centres, by score
-   times that fit: the car the marks make picks among them (:func:`_with_hubs`). The view's score stays the marks' own (the wheels shape the car, they
-   do not choose the view).
+   times that fit: the car the marks make picks among them (:func:`_with_hubs`). The view's
+   score stays the marks' own (the wheels shape the car, they do not choose the view).
 """
 from __future__ import annotations
 
