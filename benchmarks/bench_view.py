@@ -336,13 +336,24 @@ def confusion_kind(pred_deg: float, true_deg: float) -> str:
 def real_scores(pred_deg: np.ndarray, true_deg: np.ndarray) -> dict[str, float]:
     from carbody.view.labels import angular_difference
 
+    from bench_real_photos import view_lean_deg
+
     err = angular_difference(pred_deg, true_deg)
     kinds = [confusion_kind(p, t) for p, t in zip(pred_deg, true_deg)]
     n = max(1, len(kinds))
+    # the lean (bench_real_photos): on three-quarter views read in the estimate's quarter, how
+    # much nearer the car's end (−) or side (+) the prediction is than the estimate
+    leans = [view_lean_deg(p, t) for p, t, e in zip(pred_deg, true_deg, err) if e <= LEAN_WITHIN_DEG]
+    leans = [v for v in leans if v is not None]
     return {"n": len(kinds), "within15": float((err <= 15).mean()), "within30": float((err <= 30).mean()),
             "front_rear": sum(k in ("front/rear", "both") for k in kinds) / n,
             "left_right": sum(k in ("left/right", "both") for k in kinds) / n,
-            "median_err": float(np.median(err)), "kinds": kinds, "err": err}
+            "median_err": float(np.median(err)), "kinds": kinds, "err": err,
+            "lean": float(np.median(leans)) if leans else float("nan"), "lean_n": len(leans)}
+
+
+#: The lean is read on predictions within this of the estimate (the estimate's quarter).
+LEAN_WITHIN_DEG = 45.0
 
 
 def neighbour_mass(probs: np.ndarray) -> np.ndarray:
@@ -385,8 +396,9 @@ def main_real(args) -> int:
     }
     print(f"real photos: {len(photos)} from {root} (views estimated by eye, ±10°); weights "
           f"{args.weights or 'shipped'}, temperature {float(meta.get('temperature', 1.0)):.2f}")
-    print("| input | within ±15° | within ±30° | front/rear confusions | left/right confusions | median error (°) |")
-    print("|---|---|---|---|---|---|")
+    print("| input | within ±15° | within ±30° | front/rear confusions | left/right confusions | median error (°) "
+          "| three-quarter views: median lean ° (n) |")
+    print("|---|---|---|---|---|---|---|")
     results = {}
     for label, boxes in settings.items():
         probs = predict_probabilities([p["image"] for p in photos], args.weights, boxes=boxes)
@@ -403,11 +415,12 @@ def main_real(args) -> int:
             sm = real_scores(pred_m, truth)
             results["marks' box and names"] = (sm, probs_m, pred_m)
         print(f"| {label} | {s['within15']:.2f} | {s['within30']:.2f} | {s['front_rear']:.2f} | "
-              f"{s['left_right']:.2f} | {s['median_err']:.0f} |")
+              f"{s['left_right']:.2f} | {s['median_err']:.0f} | {s['lean']:+.1f} ({s['lean_n']}) |")
     if "marks' box and names" in results:
         sm = results["marks' box and names"][0]
         print(f"| box of the marks × their names' view likelihood (carbody view -k) | {sm['within15']:.2f} | "
-              f"{sm['within30']:.2f} | {sm['front_rear']:.2f} | {sm['left_right']:.2f} | {sm['median_err']:.0f} |")
+              f"{sm['within30']:.2f} | {sm['front_rear']:.2f} | {sm['left_right']:.2f} | {sm['median_err']:.0f} | "
+              f"{sm['lean']:+.1f} ({sm['lean_n']}) |")
         settings = {**settings, "marks' box and names": None}
     if args.verbose:
         print("| photo | estimate | " + " | ".join(settings) + " |\n|---|---|" + "---|" * len(settings))
