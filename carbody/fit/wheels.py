@@ -567,14 +567,12 @@ def follow_wheels(scorer, hypothesis, image: np.ndarray, to_photo: np.ndarray | 
             break  # (nothing new: the last solve stands)
         found.update({f.wheel: f for f in again})
         wheels = [found[w] for w in WHEELS if w in found]
-        h, hubs, weight, picked = _with_hubs(scorer, hypothesis, wheels, to_photo, sigma)
+        h, hubs, weight, picked, targets = _with_hubs(scorer, hypothesis, wheels, to_photo, sigma)
     seconds = time.perf_counter() - start
     if hubs is None:
         return hypothesis, WheelsFit(False, "no wheel found in the photo", [], seconds=seconds), None
     index = [WHEELS.index(f.wheel) for f in wheels]
     chosen = [f.candidates()[j] for f, j in zip(wheels, picked)]
-    photo_px = np.array([uv for uv, _ in chosen])
-    targets = photo_px if to_photo is None else apply_homography(np.linalg.inv(to_photo), photo_px)
     before = np.linalg.norm(_hubs_px(first, first.view or hypothesis.view)[index] - targets, axis=1)
     after = np.linalg.norm(_hubs_px(h.solution, h.view)[index] - targets, axis=1)
     px = lambda uv: [round(float(v), 1) for v in uv]  # noqa: E731
@@ -589,7 +587,8 @@ def follow_wheels(scorer, hypothesis, image: np.ndarray, to_photo: np.ndarray | 
 def _with_hubs(scorer, hypothesis, wheels: list[WheelFound], to_photo: np.ndarray | None, sigma: float):
     """(the hypothesis solved with the hubs found, the :class:`HubTargets` of its last solve, the
     weight (n,) in it of each wheel's likeliest centre, the index (n,) of that centre in its
-    :meth:`WheelFound.candidates`): ``wheel_passes`` solves. Each centre is weighted by how far
+    :meth:`WheelFound.candidates`, and where it lies (n, 2) in the fit camera's pixels):
+    ``wheel_passes`` solves. Each centre is weighted by how far
     the last solve put its wheel's hub from it (Cauchy, at ``wheel_robust_scale`` × its noise
     ``sigma`` px), so one wrong find cannot bend the car. A wheel with rivals shares one hub's
     worth of weight among its centres, in proportion to their scores times that fit (the first
@@ -622,7 +621,7 @@ def _with_hubs(scorer, hypothesis, wheels: list[WheelFound], to_photo: np.ndarra
     share = shares()
     likeliest = np.array([int(np.flatnonzero(owner == i)[np.argmax(share[owner == i])]) for i in range(len(wheels))])
     first = np.array([int(np.flatnonzero(owner == i)[0]) for i in range(len(wheels))])
-    return h, hubs, weight[likeliest], likeliest - first
+    return h, hubs, weight[likeliest], likeliest - first, targets[likeliest]
 
 
 def _hubs_px(solution, view: View) -> np.ndarray:
