@@ -455,6 +455,7 @@ PHOTO_ROWS = (
      64, "D"),
     ("E", "D at 96 px input", OFF | dict(framing=True, details=True, sharp=True), 96, "D"),
     ("F", "+ tone: colours shaded as light, encoded as a camera does", dict(plate_colours=False), 64, "F"),
+    ("G", "D at 128 px input (the renders' own size)", OFF | dict(framing=True, details=True, sharp=True), 128, "D"),
 )
 
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -243,6 +244,40 @@ def test_an_interrupted_training_resumes_where_it_stopped(toy_dataset, tmp_path,
     assert resumed.train_loss == pytest.approx(straight.train_loss, rel=1e-5)
     assert resumed.val_acc == pytest.approx(straight.val_acc)
     assert not (tmp_path / "b.ckpt").exists()
+
+
+def test_two_data_sets_train_together_only_when_they_hold_out_the_same_cars(toy_dataset, tmp_path):
+    """Photo-like renders and classic ones, say, rendered apart with the same seed: trained on
+    together, every image of both counts once. A set that holds out another car is refused
+    before any training, naming the problem."""
+    import shutil
+
+    from carbody.view.dataset import read_datasets, read_manifest, render_dataset
+    from carbody.view.predict import load_classifier
+    from carbody.view.train import TrainConfig, train_view_classifier
+
+    second = tmp_path / "second"
+    render_dataset(second, count=48, seed=0, bodies_per_template=1, surface_body=toy_body, progress=False,
+                   templates=["Toyota Camry XV70", "Volvo V60", "Ford F-150 SuperCrew 5.5 ft",
+                              "Mazda MX-5 ND", "Honda City e:HEV"])
+    rows = read_datasets([toy_dataset, second])
+    assert len(rows) == len(read_manifest(toy_dataset)) + len(read_manifest(second)) == 96 + 48
+    assert all(Path(r["file"]).is_absolute() and Path(r["file"]).is_file() for r in rows)
+    out = tmp_path / "w.pt"
+    train_view_classifier([toy_dataset, second], out, TrainConfig(epochs=1, batch_size=16, width_mult=0.5,
+                                                                  augment=False), progress=False)
+    _, meta = load_classifier(str(out))
+    assert meta["dataset"]["images"] == 144 and meta["dataset"]["folders"] == [toy_dataset.name, "second"]
+
+    other = tmp_path / "other"
+    shutil.copytree(second, other)
+    info = json.loads((other / "dataset.json").read_text())
+    info["validation_templates"] = ["Mazda MX-5 ND"] if info["validation_templates"] != ["Mazda MX-5 ND"] \
+        else ["Volvo V60"]
+    (other / "dataset.json").write_text(json.dumps(info))
+    with pytest.raises(ViewError, match="hold out different cars"):
+        train_view_classifier([toy_dataset, other], tmp_path / "x.pt", TrainConfig(epochs=1))
+    assert not (tmp_path / "x.pt").exists()
 
 
 def test_training_refuses_a_bad_dataset(tmp_path):

@@ -86,9 +86,10 @@ def network_logits(model, x: np.ndarray, batch_size: int = 256) -> tuple[np.ndar
     return np.concatenate(out), np.concatenate(mirror)
 
 
-def calibrate_weights(weights: str | Path, dataset_dir: str | Path, progress: bool = True) -> dict:
+def calibrate_weights(weights: str | Path, dataset_dir, progress: bool = True) -> dict:
     """Fit the temperature on a rendered data set's images of the cars held out from training
     (named in the weights; else the data set's validation split) and store it in ``weights``.
+    ``dataset_dir``: a folder, or a list of folders (:func:`carbody.view.dataset.read_datasets`).
 
     Returns:
         {"temperature", "images", "nll_before", "nll_after", "ece_before", "ece_after"} (top class,
@@ -101,19 +102,20 @@ def calibrate_weights(weights: str | Path, dataset_dir: str | Path, progress: bo
 
     import torch
 
-    from carbody.view.dataset import read_manifest
+    from carbody.view.dataset import read_datasets
     from carbody.view.predict import load_classifier
     from carbody.view.train import INPUT_SIZE, load_images
 
     weights = Path(weights)
     model, meta = load_classifier(str(weights))
     held_out = set(meta.get("dataset", {}).get("validation_templates") or [])
-    rows = read_manifest(dataset_dir)
+    rows = read_datasets(dataset_dir)
+    folders = [dataset_dir] if isinstance(dataset_dir, (str, Path)) else list(dataset_dir)
     # the cars the weights never saw; the data set's own validation split when they name none
     rows = [r for r in rows if r.get("template") in held_out] if held_out else [r for r in rows if r["split"] == "val"]
     if not rows:
         raise ViewError(f"{dataset_dir}: no images of cars held out from training to calibrate on")
-    x = load_images(dataset_dir, rows, progress, int(meta.get("input_size", INPUT_SIZE)))
+    x = load_images(folders[0], rows, progress, int(meta.get("input_size", INPUT_SIZE)))
     y = np.array([r["class_index"] for r in rows], dtype=np.int64)
     logits, mirror = network_logits(model, x)
     t = fit_temperature(logits, y, mirror)
@@ -123,7 +125,7 @@ def calibrate_weights(weights: str | Path, dataset_dir: str | Path, progress: bo
               "ece_before": expected_calibration_error(before, y), "ece_after": expected_calibration_error(after, y)}
     payload = torch.load(weights, map_location="cpu", weights_only=True)
     payload["temperature"] = t
-    payload["calibration"] = {k: v for k, v in report.items() if k != "temperature"} | {"dataset": str(dataset_dir)}
+    payload["calibration"] = {k: v for k, v in report.items() if k != "temperature"} | {"dataset": ", ".join(str(d) for d in folders)}
     tmp = weights.with_name(f".{weights.name}.{os.getpid()}.tmp")
     torch.save(payload, tmp)
     os.replace(tmp, weights)

@@ -41,7 +41,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                        description="Train MobileNetV2 from scratch: 64x64 input, Adam lr 0.001 (cosine decay), "
                                    "50 epochs, batch 64, the data set's 8:2 split by car. Writes the weights (fp16) and "
                                    "a loss/accuracy plot (paper Fig. 5).")
-    p.add_argument("dataset", help="folder written by render-dataset (or class folders named by angle)")
+    p.add_argument("dataset", nargs="+",
+                   help="folder written by render-dataset (or class folders named by angle); several are "
+                        "trained on together (rendered with the same --seed, so they hold out the same cars)")
     p.add_argument("-o", "--output", required=True, help="weights file to write (.pt)")
     p.add_argument("--epochs", type=int, default=50)
     p.add_argument("--batch-size", type=int, default=64)

@@ -797,6 +797,39 @@ def _render_on(client, out, bodies, per_body, seed, vary, val_templates, surface
     return [row for key in sorted(chunks) for row in chunks[key]]
 
 
+def read_datasets(dataset_dirs) -> list[dict]:
+    """Rows of one data set (:func:`read_manifest`) or of several trained on together (a list of
+    folders; each row's ``file`` then names its image by absolute path).
+
+    Several data sets must split their cars alike (their ``dataset.json``'s validation templates):
+    else a car one of them holds out would be trained on from another.
+
+    Raises:
+        ViewError: a folder as :func:`read_manifest` refuses it, or data sets split differently.
+    """
+    import json
+
+    if isinstance(dataset_dirs, (str, Path)):
+        return read_manifest(dataset_dirs)
+    dirs = [Path(d) for d in dataset_dirs]
+    if not dirs:
+        raise ViewError("no data set folder given")
+    if len(dirs) == 1:
+        return read_manifest(dirs[0])
+    rows, splits = [], {}
+    for d in dirs:
+        for r in read_manifest(d):
+            r["file"] = str((d / r["file"]).resolve())
+            rows.append(r)
+        meta = d / "dataset.json"
+        splits[d] = sorted(json.loads(meta.read_text()).get("validation_templates", [])) if meta.exists() else None
+    if len({tuple(v) for v in splits.values() if v is not None}) > 1:
+        raise ViewError(f"the data sets {', '.join(map(str, dirs))} hold out different cars for validation "
+                        f"(render them with the same --seed and templates): trained together, one would "
+                        f"train on a car another holds out")
+    return rows
+
+
 def read_manifest(dataset_dir: str | Path) -> list[dict]:
     """Rows of a data set: ``manifest.csv`` if present, else a folder of class folders named by
     angle (``0``, ``15``, ... ``345`` or ``000``..), split 8:2 at random by image (seed 0).

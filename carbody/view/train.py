@@ -177,13 +177,14 @@ def evaluate(model, x: np.ndarray, y: np.ndarray, batch_size: int = 256) -> tupl
     return float(sum(losses) / max(1, len(x))), float((p.argmax(1) == y).mean()) if len(y) else 0.0, p
 
 
-def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: TrainConfig = TrainConfig(),
+def train_view_classifier(dataset_dir, output: str | Path, config: TrainConfig = TrainConfig(),
                           plot: str | Path | None = None, progress: bool = True) -> History:
     """Train MobileNetV2 on a rendered data set and save the weights (fp16) and a Fig. 5 plot.
 
     Args:
         dataset_dir: a folder written by :func:`carbody.view.dataset.render_dataset` (or class
-            folders of images named by angle).
+            folders of images named by angle), or a list of such folders trained on together
+            (split alike: :func:`carbody.view.dataset.read_datasets`).
         output: the weights file (``.pt``) to write.
         plot: loss/accuracy curves PNG (default: ``output`` with ``.png``).
 
@@ -197,7 +198,7 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
     from tqdm import tqdm
 
     from carbody.progress import bar_disabled
-    from carbody.view.dataset import read_manifest
+    from carbody.view.dataset import read_datasets
     from carbody.view.network import build_mobilenet_v2
 
     if config.epochs < 1 or config.batch_size < 1 or not (config.lr > 0):
@@ -207,7 +208,9 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
     output = Path(output)
     if output.suffix != ".pt":
         raise ViewError(f"{output}: the weights file must end in .pt")
-    rows = read_manifest(dataset_dir)
+    rows = read_datasets(dataset_dir)
+    folders = [Path(dataset_dir)] if isinstance(dataset_dir, (str, Path)) else [Path(d) for d in dataset_dir]
+    dataset_dir = folders[0]  # (rows of several folders name their images by absolute path)
     train_rows = [r for r in rows if r["split"] == "train"]
     val_rows = [r for r in rows if r["split"] == "val"]
     if not train_rows or not val_rows:
@@ -289,7 +292,7 @@ def train_view_classifier(dataset_dir: str | Path, output: str | Path, config: T
         hist.seconds = time.perf_counter() - t0
         _save_checkpoint(checkpoint, model, opt, sched, rng, hist)
     hist.seconds = time.perf_counter() - t0
-    save_weights(model, output, config, hist, dataset_dir, rows)
+    save_weights(model, output, config, hist, folders, rows)
     checkpoint.unlink(missing_ok=True)
     plot_history(hist, plot or output.with_suffix(".png"))
     return hist
@@ -311,13 +314,15 @@ def _save_checkpoint(path: Path, model, opt, sched, rng: np.random.Generator, hi
 
 
 def save_weights(model, output: Path, config: TrainConfig, hist: History, dataset_dir, rows) -> Path:
-    """fp16 state dict plus what a reader needs (classes, input, normalisation, history), atomically."""
+    """fp16 state dict plus what a reader needs (classes, input, normalisation, history), atomically.
+    ``dataset_dir``: the data set's folder, or the list of folders trained on together."""
     import json
     import os
 
     import torch
 
-    meta_path = Path(dataset_dir) / "dataset.json"
+    folders = [Path(dataset_dir)] if isinstance(dataset_dir, (str, Path)) else [Path(d) for d in dataset_dir]
+    meta_path = folders[0] / "dataset.json"
     dataset_meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
     payload = {
         "format": "carbody-view-mobilenetv2/1",
@@ -335,7 +340,8 @@ def save_weights(model, output: Path, config: TrainConfig, hist: History, datase
         "dataset": {"images": len(rows), "train_images": sum(r["split"] == "train" for r in rows),
                     "val_images": sum(r["split"] == "val" for r in rows),
                     "validation_templates": dataset_meta.get("validation_templates", []),
-                    "seed": dataset_meta.get("seed"), "variation": dataset_meta.get("variation")},
+                    "seed": dataset_meta.get("seed"), "variation": dataset_meta.get("variation"),
+                    "folders": [d.name for d in folders]},
     }
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = output.with_name(f".{output.name}.{os.getpid()}.tmp")
