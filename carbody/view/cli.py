@@ -38,9 +38,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_render_dataset)
 
     p = sub.add_parser("train-view", help="train the view classifier (MobileNetV2) on a rendered data set",
-                       description="Train MobileNetV2 from scratch: 64x64 input, Adam lr 0.001 (cosine decay), "
-                                   "50 epochs, batch 64, the data set's 8:2 split by car. Writes the weights (fp16) and "
-                                   "a loss/accuracy plot (paper Fig. 5).")
+                       description="Train MobileNetV2 from scratch (or from --init): 64x64 input unless "
+                                   "--input-size, Adam lr 0.001 (cosine decay), 50 epochs, batch 64, the data "
+                                   "set's 8:2 split by car. Writes the weights (fp16) and a loss/accuracy plot "
+                                   "(paper Fig. 5).")
     p.add_argument("dataset", nargs="+",
                    help="folder written by render-dataset (or class folders named by angle); several are "
                         "trained on together (rendered with the same --seed, so they hold out the same cars)")

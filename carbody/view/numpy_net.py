@@ -1,7 +1,7 @@
 """The view classifier's MobileNetV2 forward pass in plain numpy: no torch at inference time.
 
 ``import torch`` alone costs seconds of CPU in a fresh process (1.6 to 4.4 s measured), the
-largest single cost of ``carbody reconstruct`` on one photo. The network is small (2.25 M parameters, 64 × 64 input), so
+largest single cost of ``carbody reconstruct`` on one photo. The network is small (2.25 M parameters, 96 × 96 input as shipped), so
 numpy runs it in a few milliseconds per image from the same weights, exported once at
 packaging time (with torch) to an ``.npz``:
 
