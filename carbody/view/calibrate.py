@@ -102,7 +102,7 @@ def calibrate_weights(weights: str | Path, dataset_dir, progress: bool = True) -
 
     import torch
 
-    from carbody.view.dataset import read_datasets
+    from carbody.view.dataset import dataset_folders, read_datasets
     from carbody.view.predict import load_classifier
     from carbody.view.train import INPUT_SIZE, load_images
 
@@ -110,7 +110,7 @@ def calibrate_weights(weights: str | Path, dataset_dir, progress: bool = True) -
     model, meta = load_classifier(str(weights))
     held_out = set(meta.get("dataset", {}).get("validation_templates") or [])
     rows = read_datasets(dataset_dir)
-    folders = [dataset_dir] if isinstance(dataset_dir, (str, Path)) else list(dataset_dir)
+    folders = dataset_folders(dataset_dir)
     # the cars the weights never saw; the data set's own validation split when they name none
     rows = [r for r in rows if r.get("template") in held_out] if held_out else [r for r in rows if r["split"] == "val"]
     if not rows:
@@ -125,7 +125,8 @@ def calibrate_weights(weights: str | Path, dataset_dir, progress: bool = True) -
               "ece_before": expected_calibration_error(before, y), "ece_after": expected_calibration_error(after, y)}
     payload = torch.load(weights, map_location="cpu", weights_only=True)
     payload["temperature"] = t
-    payload["calibration"] = {k: v for k, v in report.items() if k != "temperature"} | {"dataset": ", ".join(str(d) for d in folders)}
+    payload["calibration"] = {k: v for k, v in report.items() if k != "temperature"} | {
+        "dataset": ", ".join(str(d) for d in folders)}
     tmp = weights.with_name(f".{weights.name}.{os.getpid()}.tmp")
     torch.save(payload, tmp)
     os.replace(tmp, weights)

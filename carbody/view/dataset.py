@@ -797,6 +797,11 @@ def _render_on(client, out, bodies, per_body, seed, vary, val_templates, surface
     return [row for key in sorted(chunks) for row in chunks[key]]
 
 
+def dataset_folders(dataset_dirs) -> list[Path]:
+    """The folders of one data set (a path) or of several trained on together (a list)."""
+    return [Path(dataset_dirs)] if isinstance(dataset_dirs, (str, Path)) else [Path(d) for d in dataset_dirs]
+
+
 def read_datasets(dataset_dirs) -> list[dict]:
     """Rows of one data set (:func:`read_manifest`) or of several trained on together (a list of
     folders; each row's ``file`` then names its image by absolute path).
@@ -809,9 +814,7 @@ def read_datasets(dataset_dirs) -> list[dict]:
     """
     import json
 
-    if isinstance(dataset_dirs, (str, Path)):
-        return read_manifest(dataset_dirs)
-    dirs = [Path(d) for d in dataset_dirs]
+    dirs = dataset_folders(dataset_dirs)
     if not dirs:
         raise ViewError("no data set folder given")
     if len(dirs) == 1:

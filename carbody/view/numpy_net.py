@@ -1,9 +1,9 @@
 """The view classifier's MobileNetV2 forward pass in plain numpy: no torch at inference time.
 
 ``import torch`` alone costs seconds of CPU in a fresh process (1.6 to 4.4 s measured), the
-largest single cost of ``carbody reconstruct`` on one photo. The network is small (2.25 M parameters, 96 × 96 input as shipped), so
-numpy runs it in a few milliseconds per image from the same weights, exported once at
-packaging time (with torch) to an ``.npz``:
+largest single cost of ``carbody reconstruct`` on one photo. The network is small (2.25 M
+parameters, 96 × 96 input as shipped), so numpy runs it in a few milliseconds per image from
+the same weights, exported once at packaging time (with torch) to an ``.npz``:
 
     from carbody.view.numpy_net import export_weights, probabilities
     export_weights("view_mobilenetv2.pt", "view_mobilenetv2.npz")     # torch, once

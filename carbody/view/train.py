@@ -198,7 +198,7 @@ def train_view_classifier(dataset_dir, output: str | Path, config: TrainConfig =
     from tqdm import tqdm
 
     from carbody.progress import bar_disabled
-    from carbody.view.dataset import read_datasets
+    from carbody.view.dataset import dataset_folders, read_datasets
     from carbody.view.network import build_mobilenet_v2
 
     if config.epochs < 1 or config.batch_size < 1 or not (config.lr > 0):
@@ -209,7 +209,7 @@ def train_view_classifier(dataset_dir, output: str | Path, config: TrainConfig =
     if output.suffix != ".pt":
         raise ViewError(f"{output}: the weights file must end in .pt")
     rows = read_datasets(dataset_dir)
-    folders = [Path(dataset_dir)] if isinstance(dataset_dir, (str, Path)) else [Path(d) for d in dataset_dir]
+    folders = dataset_folders(dataset_dir)
     dataset_dir = folders[0]  # (rows of several folders name their images by absolute path)
     train_rows = [r for r in rows if r["split"] == "train"]
     val_rows = [r for r in rows if r["split"] == "val"]
@@ -321,7 +321,9 @@ def save_weights(model, output: Path, config: TrainConfig, hist: History, datase
 
     import torch
 
-    folders = [Path(dataset_dir)] if isinstance(dataset_dir, (str, Path)) else [Path(d) for d in dataset_dir]
+    from carbody.view.dataset import dataset_folders
+
+    folders = dataset_folders(dataset_dir)
     meta_path = folders[0] / "dataset.json"
     dataset_meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
     payload = {
