@@ -33,8 +33,8 @@ Definitions:
   τ3 and τ2, the means of the same distances. The fit's score is d3/τ3 + d2/τ2; it is the same
   when that is at most the median re-marking's score, as close as marking everything again is
   at least half the time. (The rule before, both distances within their means, was stricter
-  than that: a re-marking met it 5 or 6 times in 16 on the example, cps_te39 and cps_car10,
-  each judged by the other 15. The table's column "earlier rule" counts by it.)
+  than that: the table's last column counts the re-markings that meet each rule, each judged
+  by the others; its column "earlier rule" counts the actions by it.)
 - **Same at**: the first action count after which the fit is the same and stays the same to
   the user's last action; **first fit at**: the action that placed the fifth mark (the page fits from there
   on); **settled at**: the first action count at which the page says the fit has settled
@@ -140,9 +140,14 @@ class Reference:
             noisy = {n: tuple(np.clip(np.add(uv, rng.normal(0.0, sigma, 2)), 0, [w, h])) for n, uv in marks.items()}
             fit = self.fit_marks(noisy)
             spread.append(self.distances(fit))
+        self.set_spread(spread)
+
+    def set_spread(self, spread: list[tuple[float, float]]) -> None:
+        """τ3, τ2 (the re-markings' mean distances) and the median re-marking's score, from the
+        re-markings' (3D mm, photo px) distances from the hand fit."""
+        self.spread = [tuple(d) for d in spread]
         self.tau3, self.tau2 = (float(v) for v in np.mean(spread, axis=0))
         self.bar = float(np.median([self.score(*d) for d in spread]))
-        self.spread = spread
 
     def score(self, d3: float, d2: float) -> float:
         """d3/τ3 + d2/τ2: the distances from the hand fit, each in units of a re-marking's mean."""
@@ -263,7 +268,8 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
     return {"photo": name, "hand": len(hand), "view_guess_deg": guess, "view_fit_deg": float(ref.fit.view.azimuth),
             "view_picked_deg": picked, "car_length_px": ref.length_px, "tau3_mm": ref.tau3, "tau2_px": ref.tau2,
             "same_at": same_at, "same_at_earlier_rule": same_at_earlier,
-            "remarkings_passing": ref.remarkings_passing(), "score_bar": ref.bar, "first_same_at": next((r["action"] for r in rows if r["same"]), None),
+            "remarkings_passing": ref.remarkings_passing(), "score_bar": ref.bar,
+            "first_same_at": next((r["action"] for r in rows if r["same"]), None),
             "settled_at": settled and settled["action"], "first_fit_at": first_fit,
             "settled_d3_mm": settled and settled["d3_mm"], "settled_d2_px": settled and settled["d2_px"],
             "actions_to_end": actions, "accepted": sum(r["op"] == "accept" for r in rows),

@@ -12,9 +12,7 @@ import bench_annotate as ba  # noqa: E402
 def reference(spread):
     """A Reference built from re-marking distances alone (no fits)."""
     ref = object.__new__(ba.Reference)
-    ref.spread = [tuple(d) for d in spread]
-    ref.tau3, ref.tau2 = (float(v) for v in np.mean(spread, axis=0))
-    ref.bar = float(np.median([ref.score(*d) for d in spread]))
+    ref.set_spread(spread)
     return ref
 
 

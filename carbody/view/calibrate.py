@@ -114,7 +114,7 @@ def calibrate_weights(weights: str | Path, dataset_dir, progress: bool = True) -
     # the cars the weights never saw; the data set's own validation split when they name none
     rows = [r for r in rows if r.get("template") in held_out] if held_out else [r for r in rows if r["split"] == "val"]
     if not rows:
-        raise ViewError(f"{dataset_dir}: no images of cars held out from training to calibrate on")
+        raise ViewError(f"{', '.join(map(str, folders))}: no images of cars held out from training to calibrate on")
     x = load_images(folders[0], rows, progress, int(meta.get("input_size", INPUT_SIZE)))
     y = np.array([r["class_index"] for r in rows], dtype=np.int64)
     logits, mirror = network_logits(model, x)
