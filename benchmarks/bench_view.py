@@ -10,7 +10,7 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
     python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
     python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
-    python benchmarks/bench_view.py --speed [--weights W.pt|W.npz] [--repeats 200]
+    python benchmarks/bench_view.py --speed [--weights W.pt|W.onnx] [--repeats 200]
     python benchmarks/bench_view.py --photo-ablation [--epochs 40] [--count 4800] [--workdir DIR] [--only "B;C"]
                                     [--width 0.5] [--train-seed 1] [--measure LABEL=W.pt] [--table]
 
@@ -151,39 +151,41 @@ def inference_ms(image_path: Path, weights: str | None, repeats: int = 200) -> d
 
 
 def main_speed(args) -> int:
-    """Per-picture inference as ``carbody view --box`` runs it (decode + crop + resize + the numpy
-    network with mirror averaging, no torch), wall and CPU time, 1 BLAS thread; a ``.pt`` is
-    exported to a temporary ``.npz`` first. The load average is printed: on the shared machine
+    """Per-picture inference as ``carbody view --box`` runs it (decode + crop + resize + the
+    exported network in OpenCV's DNN module with mirror averaging, no torch), wall and CPU time,
+    one BLAS and one OpenCV thread; a ``.pt`` is exported to a temporary ``.onnx`` first. The load average is printed: on the shared machine
     the wall time grows with it, the CPU time much less."""
+    import cv2
     from threadpoolctl import threadpool_limits
 
-    from carbody.view.numpy_net import load_numpy_classifier, numpy_weights_for, probabilities
+    from carbody.view.onnx_net import load_onnx_classifier, onnx_weights_for, probabilities
     from carbody.view.predict import crop_to_box, predict_view, read_image
     from carbody.view.train import to_square_input
 
     weights = args.weights
     if weights and Path(weights).suffix == ".pt":
-        from carbody.view.numpy_net import export_weights
+        from carbody.view.onnx_net import export_weights
 
-        npz = Path(tempfile.mkdtemp(prefix="carbody-view-speed-")) / "w.npz"
-        export_weights(weights, npz)
-        weights = str(npz)
+        exported = Path(tempfile.mkdtemp(prefix="carbody-view-speed-")) / "w.onnx"
+        export_weights(weights, exported)
+        weights = str(exported)
     root = Path(args.photos) if args.photos else REAL_PHOTOS
     photos = real_photo_set(root) if (root / "keypoints").is_dir() else []
     if photos:
         image, box = photos[0]["image"], photos[0]["parts_box"]
     else:                        # no shared photos: a synthetic 800 x 600 picture
         image, box = np.random.default_rng(0).integers(0, 255, (600, 800, 3), dtype=np.uint8), (100, 150, 700, 450)
-    size = load_numpy_classifier(numpy_weights_for(weights)).meta["input_size"]
+    size = load_onnx_classifier(onnx_weights_for(weights)).meta["input_size"]
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "
-          f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} (1/5/15 min); numpy network, {size} px input, "
-          f"1 BLAS thread; picture {Path(image).name if photos else 'synthetic'} with its box")
+          f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} (1/5/15 min); OpenCV DNN {cv2.__version__}, {size} px input, "
+          f"1 thread; picture {Path(image).name if photos else 'synthetic'} with its box")
     print("| call | wall ms median | wall ms 90th pct | CPU ms median |\n|---|---|---|---|")
     x = to_square_input(crop_to_box(read_image(image), box), size)[None]
+    cv2.setNumThreads(1)           # OpenCV's own pool: the DNN module's convolutions
     calls = [("whole call (decode + crop + network), ",
               lambda mirror: predict_view(image, weights, mirror_average=mirror, box=box),
               ("one pass", "with mirror averaging (default)")),
-             ("network alone, ", lambda mirror: probabilities(x, numpy_weights_for(weights), mirror),
+             ("network alone, ", lambda mirror: probabilities(x, onnx_weights_for(weights), mirror),
               ("one pass", "with mirror averaging"))]
     with threadpool_limits(1):
         for head, call, tails in calls:
@@ -679,7 +681,7 @@ def main() -> None:
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
     ap.add_argument("--speed", action="store_true",
-                    help="inference time per picture as carbody view --box runs it (numpy network)")
+                    help="inference time per picture as carbody view --box runs it (exported network, OpenCV DNN)")
     ap.add_argument("--repeats", type=int, default=200, help="--speed: timed calls per setting")
     args = ap.parse_args()
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))

@@ -12,7 +12,7 @@ Every worker runs one task at a time (one thread: the work is numpy, OCCT and VT
 worth each) and gets :class:`CarbodyWorker`, which pins one BLAS/OpenMP/torch thread (two
 workers on two cores would otherwise oversubscribe them) and loads, once, what every photo
 needs into the module-level caches the public API already reads
-(:func:`carbody.library.default_library`, :func:`carbody.view.numpy_net.load_numpy_classifier`), so a
+(:func:`carbody.library.default_library`, :func:`carbody.view.onnx_net.load_onnx_classifier`), so a
 photo's task stays a plain call of :func:`carbody.reconstruct`.
 
 The workers read the inputs and write the outputs themselves, so on a cluster of several
@@ -36,7 +36,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from carbody.errors import BatchError
 
-#: What :func:`warm_up` can load: the model library, the view classifier (numpy), and the
+#: What :func:`warm_up` can load: the model library, the view classifier (OpenCV DNN), and the
 #: kernel (OCP for the surfaces and STEP, VTK for the pictures), whose imports take seconds.
 WARM_PARTS = ("library", "classifier", "kernel")
 
@@ -72,9 +72,9 @@ def warm_up(parts: tuple[str, ...] = WARM_PARTS) -> dict[str, float]:
 
             default_library()
         elif part == "classifier":
-            from carbody.view.numpy_net import load_numpy_classifier
+            from carbody.view.onnx_net import load_onnx_classifier
 
-            load_numpy_classifier()
+            load_onnx_classifier()
         elif part == "kernel":
             import OCP  # noqa: F401  (the faces, the sewing and the STEP writers)
             import vtkmodules.vtkRenderingCore  # noqa: F401
@@ -86,10 +86,13 @@ def warm_up(parts: tuple[str, ...] = WARM_PARTS) -> dict[str, float]:
         seconds[part] = time.perf_counter() - start
     # After the imports, so the BLAS and OpenMP libraries they loaded are limited too (a Dask
     # nanny also sets OMP/OPENBLAS/MKL_NUM_THREADS=1 for the processes it starts; a worker
-    # started some other way may not have).
+    # started some other way may not have). OpenCV keeps a pool of its own (the view
+    # classifier's convolutions, GrabCut).
+    import cv2
     from threadpoolctl import threadpool_limits
 
     _THREAD_LIMITS = threadpool_limits(1)
+    cv2.setNumThreads(1)
     return seconds
 
 

@@ -309,9 +309,9 @@ def crop_to_box(image: np.ndarray, box, fill: float = BOX_FILL) -> np.ndarray:
 def predict_probabilities(images: list | np.ndarray, weights: str | Path | None = None,
                           mirror_average: bool = True, boxes: list | None = None,
                           temperature: float | None = None) -> np.ndarray:
-    """(B, 24) class probabilities of a batch of pictures (paths or arrays): through the numpy
-    network (:mod:`carbody.view.numpy_net`, no torch to import) for the shipped weights or an
-    ``.npz``, through torch for a ``.pt`` file.
+    """(B, 24) class probabilities of a batch of pictures (paths or arrays): through the exported
+    network in OpenCV's DNN module (:mod:`carbody.view.onnx_net`, no torch to import) for the
+    shipped weights or an ``.onnx``, through torch for a ``.pt`` file.
 
     Args:
         boxes: per picture, None or the car's box (x0, y0, x1, y1) pixels to crop to
@@ -319,7 +319,7 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
         temperature: divides the logits before the softmax; None: the weights' calibrated one
             (1 when they have none).
     """
-    from carbody.view.numpy_net import numpy_weights_for, probabilities
+    from carbody.view.onnx_net import onnx_weights_for, probabilities
     from carbody.view.train import INPUT_SIZE, to_square_input
 
     boxes = list(boxes) if boxes is not None else [None] * len(images)
@@ -328,17 +328,17 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
     if temperature is not None and not float(temperature) > 0:
         raise ViewError(f"the temperature must be positive, got {temperature}")
     pics = [read_image(im) for im in images]
-    npz = numpy_weights_for(weights)
-    if npz is not None:
-        from carbody.view.numpy_net import load_numpy_classifier
+    exported = onnx_weights_for(weights)
+    if exported is not None:
+        from carbody.view.onnx_net import load_onnx_classifier
 
-        size = int(load_numpy_classifier(npz).meta.get("input_size", INPUT_SIZE))
+        size = int(load_onnx_classifier(exported).meta.get("input_size", INPUT_SIZE))
     else:
         model, meta = load_classifier(str(weights) if weights else None)
         size = int(meta.get("input_size", INPUT_SIZE))
     x = np.stack([to_square_input(pic if b is None else crop_to_box(pic, b), size) for pic, b in zip(pics, boxes)])
-    if npz is not None:
-        return probabilities(x, npz, mirror_average, temperature)
+    if exported is not None:
+        return probabilities(x, exported, mirror_average, temperature)
     import torch
 
     from carbody.view.train import to_tensor
