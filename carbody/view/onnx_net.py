@@ -22,10 +22,7 @@ The graph takes the normalised picture (N, 3, S, S) float32 as ``x`` and gives (
 as ``logits``; the number of pictures is free. Beside the ``.onnx`` lies its metadata as JSON
 (same name, ``.json``: format, number of classes, width multiplier, input size, normalisation,
 class angles, temperature, the source file's SHA-256), also stored in the model's
-``metadata_props`` for other ONNX tools.
-
-It runs the network about twice as fast as the numpy forward pass it replaced (side by side,
-one thread: ``benchmarks/bench_view.py --speed``).
+``metadata_props`` for other ONNX tools. Its speed: ``benchmarks/bench_view.py --speed``.
 """
 from __future__ import annotations
 
