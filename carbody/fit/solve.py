@@ -715,7 +715,7 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     ABV = AB @ V
     y1, y2 = ABV.T @ b, ams @ ABV  # (q,), (T, q)
 
-    def coeffs(g):  # g: (T, n) -> (T, n, q): g·(y1 − g·y2) / (g²·e + λ), in place (the search's bulk)
+    def coeffs(g):  # g: (T, n) -> (T, n, q): g·(y1 − g·y2) / (g²·e + λ)
         g = g[..., None]
         c = g * y2[:, None]
         np.subtract(y1, c, out=c)
@@ -726,13 +726,20 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
         return c
 
     # ABV's columns are orthogonal with squared norms e, so the cost needs only q-vectors:
-    # ‖g·(am + ABV·c) − b‖² = g²(am·am + 2 y2·c + Σ e c²) − 2g(am·b + y1·c) + b·b.
+    # ‖g·(am + ABV·c) − b‖² + λ‖c‖² = g²·am·am − 2g·am·b + b·b − Σ_q N_q²/D_q at the optimal c,
+    # with N = g·(y1 − g·y2) and D = g²·e + λ (c = N/D: the cross terms sum to −2N²/D, the
+    # quadratic ones to N²/D).
     amam, amb, bb = np.einsum("tm,tm->t", ams, ams)[:, None], (ams @ b)[:, None], float(b @ b)
 
-    def cost(g):  # (T, n)
-        c = coeffs(g)
-        quad = amam + 2.0 * np.einsum("tnq,tq->tn", c, y2) + np.einsum("tnq,q->tn", c * c, e)
-        return g * g * quad - 2.0 * g * (amb + c @ y1) + bb + lam * np.einsum("tnq,tnq->tn", c, c)
+    def cost(g):  # (T, n), in place on one (T, n, q) array (the search's bulk)
+        gq = g[..., None]
+        r = gq * y2[:, None]
+        np.subtract(y1, r, out=r)
+        r *= r
+        d = (gq * gq) * e
+        d += lam
+        r /= d
+        return g * (g * amam - 2.0 * amb) + bb - (g * g) * r.sum(axis=2)
 
     # The unregularised scale of each centre brackets the answer.
     g0 = np.maximum(amb[:, 0] / np.maximum(amam[:, 0], 1e-300), 1e-6)
