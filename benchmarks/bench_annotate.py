@@ -46,7 +46,8 @@ Definitions:
   the same. Even a page that never asked for what the annotator left out would need about
   that many actions. With ``--with-wheels`` every fit of it (the hand fit and τ too) is given
   the photo, so the wheels' hubs found there join the marks, as ``carbody reconstruct`` fits:
-  does the photo's own evidence let fewer marks reach the hand fit?
+  does the photo's own evidence let fewer marks reach the hand fit? ``--with-outline`` gives
+  every fit the car's outline in the photo as well (``reconstruct --outline``, wheels on too).
 - **Facing** (``--facing``): on every real photo, the keypoints the full fit of its hand marks
   shows on the photo, by how squarely they face the camera
   (:func:`carbody.annotate.guide.facing_cosines`), and the share the annotator marked.
@@ -64,7 +65,7 @@ Definitions:
 
     python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
                                         [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
-                                        [--oracle [--with-wheels]] [--facing] [--no-guided] [--to-the-end]
+                                        [--oracle [--with-wheels | --with-outline]] [--facing] [--no-guided] [--to-the-end]
 
 Real photos are read where they are (``--data``, default ``../shared/realphotos``); a photo or
 folder that is missing is skipped with a note. Run it niced on a shared machine: the load
@@ -124,10 +125,11 @@ def angular(a: float, b: float) -> float:
 class Reference:
     """The fit of every hand mark, and how far re-marking everything moves it (τ3, τ2)."""
 
-    def __init__(self, marks: dict, image_size, prior, accept: float, draws: int, seed: int = 0, photo=None):
+    def __init__(self, marks: dict, image_size, prior, accept: float, draws: int, seed: int = 0, photo=None,
+                 outline: bool = False):
         from carbody.annotate import live_fit
 
-        self.image_size, self.prior, self.photo = image_size, prior, photo
+        self.image_size, self.prior, self.photo, self.outline = image_size, prior, photo, outline
         self.fit = self.fit_marks(marks)
         self.shown = live_fit.visible_names(self.fit)
         self.k3, self.k2 = self.keypoints(self.fit)
@@ -175,10 +177,12 @@ class Reference:
         return by_score, by_rule, len(d)
 
     def fit_marks(self, marks: dict):
-        """The full fit of ``marks`` (given the photo too when the reference was), or None."""
+        """The full fit of ``marks`` (given the photo, and its outline, too when the reference
+        was), or None."""
         from carbody.annotate import live_fit
 
-        return live_fit.fit_marks(marks, self.image_size, self.prior, quick=False, photo=self.photo).fit
+        return live_fit.fit_marks(marks, self.image_size, self.prior, quick=False, photo=self.photo,
+                                  outline=self.outline).fit
 
     def keypoints(self, fit) -> tuple[np.ndarray, np.ndarray]:
         from carbody.annotate import live_fit
@@ -344,7 +348,8 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
         session.close()
     from carbody.view.predict import read_image
 
-    ref = Reference(hand, size, prior, args.accept, args.draws, photo=read_image(image) if args.with_wheels else None)
+    photo = read_image(image) if args.with_wheels or args.with_outline else None
+    ref = Reference(hand, size, prior, args.accept, args.draws, photo=photo, outline=args.with_outline)
     names = list(hand)
     uv = np.array([hand[n] for n in names])
     order = [names[int(np.argmax(np.linalg.norm(uv - uv.mean(axis=0), axis=1)))]]
@@ -362,7 +367,8 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
         order.append(best)
         if args.verbose:
             print(f"  oracle {name} {len(order):2d} {best:28s} 3D {d3:6.1f} mm  photo {d2:5.1f} px", flush=True)
-    return {"photo": name, "hand": len(hand), "marks": len(order), "order": order, "with_wheels": args.with_wheels,
+    return {"photo": name, "hand": len(hand), "marks": len(order), "order": order, "with_wheels": photo is not None,
+            "with_outline": args.with_outline,
             "same": ref.same(d3, d2), "tau3_mm": ref.tau3, "tau2_px": ref.tau2}
 
 
@@ -420,6 +426,8 @@ def main(argv=None) -> int:
     parser.add_argument("--oracle", action="store_true", help="also the fewest hand marks a greedy order needs")
     parser.add_argument("--with-wheels", action="store_true",
                         help="the oracle's fits given the photo too: the wheels' hubs found in it join the marks")
+    parser.add_argument("--with-outline", action="store_true",
+                        help="the oracle's fits given the photo's wheels and the car's outline in it too")
     parser.add_argument("--facing", action="store_true",
                         help="also the annotators' share of marked keypoints by how squarely they face the camera")
     parser.add_argument("--no-guided", action="store_true", help="skip the guided sessions and the latencies")
@@ -469,7 +477,8 @@ def main(argv=None) -> int:
               f"{'yes' if r['same_when_stopped'] else 'no'} | {r['tau3_mm']:.0f} / {r['tau2_px']:.1f} | "
               f"{by_score} / {by_rule} of {draws} |")
     if oracles:
-        wheels = " (the photo's wheels fitted too)" if args.with_wheels else ""
+        wheels = (" (the photo's wheels and outline fitted too)" if args.with_outline else
+                  " (the photo's wheels fitted too)" if args.with_wheels else "")
         print(f"\n| photo | hand marks | the greedy order's marks to the same fit{wheels} | τ3 mm / τ2 px |")
         print("|---|---|---|---|")
         for o in oracles:

@@ -121,6 +121,21 @@ def test_from_the_fifth_mark_the_page_gets_a_wireframe_and_a_ghost_for_every_key
     assert all(m["residual_px"] is not None for m in fit["marks"].values())
 
 
+def test_a_full_fit_given_the_photo_can_fit_its_outline_too(example_marks):
+    """What the benchmark's oracle asks with --with-outline: the car's outline in the photo joins
+    the marks (as reconstruct --outline), and without the switch it does not."""
+    from carbody.annotate import live_fit
+    from carbody.camera import View
+    from carbody.view.predict import read_image
+
+    rgb = read_image(EXAMPLE)
+    size = (rgb.shape[1], rgb.shape[0])
+    with_outline = live_fit.fit_marks(example_marks, size, View(30.0, 10.0), quick=False, photo=rgb, outline=True)
+    assert with_outline.fit.outline.used and with_outline.fit.outline.points > 20
+    assert with_outline.fit.outline.median_px_after <= with_outline.fit.outline.median_px_before
+    assert live_fit.fit_marks(example_marks, size, View(30.0, 10.0), quick=False, photo=rgb).fit.outline is None
+
+
 def test_the_first_marks_asked_spread_over_the_car(tmp_path, example_marks):
     """Before a fit the page asks the keypoints the guessed view shows in farthest-point order:
     the first five span most of the car's length and height in the photo."""

@@ -86,7 +86,7 @@ class LiveFit:
 
 def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int], prior,
               scan_from: View | None = None, quick: bool = True, library=None,
-              photo: np.ndarray | None = None) -> LiveFit:
+              photo: np.ndarray | None = None, outline: bool = False) -> LiveFit:
     """Fit the marks (camera distance found, marks estimated robustly, as ``carbody fit``).
 
     Args:
@@ -99,6 +99,7 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
         quick: the quick policy (:func:`quick_policy`) or the full one (the default's).
         photo: the photo, (h, w, 3) uint8 RGB: the wheels' hubs found in it join the marks, as
             ``carbody reconstruct`` fits; None (the page's fits) the marks alone.
+        outline: with ``photo``, the car's outline in it fitted too (``reconstruct --outline``).
     """
     from carbody.errors import CarbodyError
     from carbody.fit import FitOptions, fit_wireframe
@@ -113,7 +114,8 @@ def fit_marks(marks: dict[str, tuple[float, float]], image_size: tuple[int, int]
         library = default_library()
     try:
         fit = fit_wireframe(dict(marks), prior, library, image_size=image_size,
-                            options=FitOptions(camera_distance_mm="auto", policy=policy), photo=photo)
+                            options=FitOptions(camera_distance_mm="auto", policy=policy, outline=outline),
+                            photo=photo)
     except CarbodyError as exc:
         return LiveFit(None, str(exc), quick, time.perf_counter() - start, time.thread_time() - cpu, image_size)
     return LiveFit(fit, None, quick, time.perf_counter() - start, time.thread_time() - cpu, image_size)
