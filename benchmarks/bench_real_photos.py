@@ -15,6 +15,7 @@ beside its folder (``OUT/<photo>.run.json``; its output in ``OUT/<photo>.stdout.
     python benchmarks/bench_real_photos.py [--photos N | NAME ...] [--workers 1] [--out DIR]
                                            [--data DIR] [--json FILE] [--reuse] [--blas-threads N]
                                            [--timeout S] [--no-sheet] [--outline] [--[no-]wheels]
+                                           [--principal-point auto|car|centre]
 
 Outcomes: ``body`` (exit 0 and a ``body.step``), ``refused`` (exit 2 with one line
 ``carbody reconstruct: error: ...`` and no traceback: the table shows the line), ``error``
@@ -855,6 +856,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=None,
                     help="reconstruct with --wheels (or --no-wheels): the wheels' hubs found in the photo "
                          "fitted with the marks (default: as reconstruct's default)")
+    ap.add_argument("--principal-point", choices=("auto", "car", "centre"), default=None,
+                    help="reconstruct with --principal-point: where the camera's axis meets the photo "
+                         "(default: as reconstruct's default, auto)")
     args = ap.parse_args(argv)
 
     if not (args.data / "parts.json").exists():
@@ -868,7 +872,8 @@ def main(argv: list[str] | None = None) -> int:
         run = stored_run(photo, args.out) if args.reuse else None
         if run is None:
             extra = ("--outline",) * args.outline + \
-                (() if args.wheels is None else ("--wheels",) if args.wheels else ("--no-wheels",))
+                (() if args.wheels is None else ("--wheels",) if args.wheels else ("--no-wheels",)) + \
+                (() if args.principal_point is None else ("--principal-point", args.principal_point))
             run = run_photo(photo, args.out, args.timeout, args.blas_threads, extra)
             print(f"{photo.name}: exit {run['exit_code']} in {run['seconds']:.1f} s", file=sys.stderr, flush=True)
         return run
