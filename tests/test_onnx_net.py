@@ -70,8 +70,8 @@ def test_export_folds_every_batchnorm_into_a_compact_file(exported):
     assert "BatchNormalization" not in ops
     groups = [next(a.i for a in n.attribute if a.name == "group") for n in model.graph.node if n.op_type == "Conv"]
     assert groups[:3] == [1, 32, 1]                          # stem, depthwise, pointwise
-    assert (meta["num_classes"], meta["width_mult"], meta["input_size"], meta["mean"], meta["std"]) == \
-        (24, 1.0, 96, 0.5, 0.25)
+    assert (meta["num_classes"], meta["width_mult"], meta["mean"], meta["std"]) == (24, 1.0, 0.5, 0.25)
+    assert meta["input_size"] == json.loads(meta_path(SHIPPED_ONNX).read_text())["input_size"] >= 64
     inits = {t.name: t for t in model.graph.initializer}
     assert {t.data_type for name, t in inits.items() if name.startswith("w")} == {onnx.TensorProto.FLOAT16}
     n_stored = sum(int(np.prod(t.dims)) for name, t in inits.items() if name not in ("zero", "six"))
@@ -129,8 +129,9 @@ def test_shipped_onnx_is_the_export_of_the_shipped_pt(exported):
 
 def test_the_exported_classifier_never_imports_torch_or_onnx():
     code = ("import sys, numpy as np\n"
-            "from carbody.view.onnx_net import probabilities\n"
-            "p = probabilities(np.zeros((1, 96, 96, 3), np.uint8))\n"
+            "from carbody.view.onnx_net import load_onnx_classifier, probabilities\n"
+            "s = load_onnx_classifier().meta['input_size']\n"
+            "p = probabilities(np.zeros((1, s, s, 3), np.uint8))\n"
             "assert p.shape == (1, 24), p.shape\n"
             "print('torch' in sys.modules, 'onnx' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True)
@@ -151,8 +152,9 @@ def test_bad_files_and_bad_input_are_refused(tmp_path, exported):
         load_onnx_classifier(tmp_path / "missing.onnx")
     with pytest.raises(ViewError, match="square pictures"):
         probabilities(np.zeros((64, 64, 3), np.uint8), exported[0])
-    with pytest.raises(ViewError, match=r"\(N, 3, 96, 96\)"):
-        OnnxClassifier.from_file(exported[0]).logits(np.zeros((1, 3, 64, 64), np.float32))
+    size = exported[1]["input_size"]
+    with pytest.raises(ViewError, match=rf"\(N, 3, {size}, {size}\)"):
+        OnnxClassifier.from_file(exported[0]).logits(np.zeros((1, 3, size // 2, size // 2), np.float32))
 
 
 def test_the_shipped_and_onnx_weights_run_in_opencv_and_a_pt_file_in_torch(tmp_path):
