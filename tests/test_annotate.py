@@ -210,6 +210,28 @@ def test_marking_a_keypoint_hidden_answers_without_a_refit(tmp_path, example_mar
     assert session.payload is not fit_before and placed not in again["marks"] and not again["refined"]
 
 
+def test_before_the_fit_the_names_marked_turn_a_guess_made_from_the_wrong_end(tmp_path, example_marks):
+    """The classifier reads the whole photo as the car's other end (210° for a car seen at 30°):
+    the page's guess starts there, and three marks whose names that end cannot see bring it to
+    the car's own side; the fits' prior stays the classifier's."""
+    from carbody.annotate.session import AnnotationSession
+    from carbody.camera import View
+    from carbody.view.labels import CLASS_ANGLES_DEG, angular_difference
+
+    session = AnnotationSession(EXAMPLE, classify=False, full_fits=False, warm_up=False, output=tmp_path / "m.json")
+    p = np.full(24, 0.5 / 23)                # as sure as the calibrated classifier is when wrong
+    p[list(CLASS_ANGLES_DEG).index(210.0)] = 0.5
+    session.use_classifier(p)
+    assert angular_difference(session.guess.azimuth, 210.0) < 8
+    prior = session.prior
+    for name in ("nose_centre", "front_top_corner", "front_arch_front"):
+        session.place(name, example_marks[name])
+    assert angular_difference(session.guess.azimuth, 30.0) <= 30 and session.prior is prior
+    session.pick_view(90.0)                   # a view picked is kept as it is
+    session.place("sill_front", example_marks["sill_front"])
+    assert session.guess == View(90.0, session.guess.elevation) and session.view_source == "picked"
+
+
 def test_before_the_fit_the_page_asks_what_the_guessed_view_shows_squarely(tmp_path):
     """The first keypoints asked face the camera squarely from the guessed view and from views
     20° either side of it (a guess may be that far off): none is seen edge on."""

@@ -10,8 +10,9 @@ process, not a thread: the full fit is Python-heavy, and in a thread it would ho
 click's quick fit.
 
 Before the car is fitted, the view the page draws the reference car from and asks keypoints for
-is a guess: the view classifier's (run when the session starts, in the background), a view the
-user picks, or ``--view``.
+is a guess: the view classifier's (run when the session starts, in the background, on the whole
+photo, then weighed by the names of the marks placed so far), a view the user picks, or
+``--view``.
 """
 from __future__ import annotations
 
@@ -98,6 +99,7 @@ class AnnotationSession:
         self.view_source = "default"
         self.guess = DEFAULT_VIEW
         self.prior = None
+        self.classifier_probabilities: np.ndarray | None = None  # (24,), once the classifier answers
         if view is not None:
             self.guess = View(check_azimuth(read_view(view)), DEFAULT_VIEW.elevation)
             self.prior, self.view_source = self.guess, "told"
@@ -140,20 +142,36 @@ class AnnotationSession:
     def _classify(self) -> None:
         """The view classifier's guess and prior (a failure leaves the default guess)."""
         try:
-            from carbody.fit import ViewPrior
-            from carbody.view.labels import CLASS_ANGLES_DEG
             from carbody.view.predict import predict_view
 
             prediction = predict_view(self.rgb)
         except Exception:  # no weights, no torch: the page works without the guess
             return
+        self.use_classifier(prediction.probabilities)
+
+    def use_classifier(self, probabilities) -> None:
+        """The classifier's (24,) class probabilities as the guess and the fits' prior, unless
+        the user picked a view meanwhile or one was told."""
+        from carbody.fit import ViewPrior
+        from carbody.view.labels import CLASS_ANGLES_DEG
+
         with self._lock:
             if self.view_source != "default":
-                return  # the user picked a view meanwhile
-            self.guess = View(float(prediction.theta_deg), DEFAULT_VIEW.elevation)
-            self.prior = ViewPrior.from_classifier(CLASS_ANGLES_DEG, prediction.probabilities)
+                return
+            self.classifier_probabilities = np.asarray(probabilities, dtype=float)
+            self.prior = ViewPrior.from_classifier(CLASS_ANGLES_DEG, self.classifier_probabilities)
             self.view_source = "classifier"
             self._edited()
+
+    def _classifier_guess(self) -> View:
+        """The classifier's view weighed by the names marked so far (:mod:`carbody.view.marks`:
+        a person marks what they see), as the page guesses it before the first fit. The prior
+        of the fits stays the classifier's alone, as ``carbody reconstruct`` has it."""
+        from carbody.view.labels import continuous_estimate
+        from carbody.view.marks import combine_with_marks
+
+        p = combine_with_marks(self.classifier_probabilities, list(self.sheet.marks))
+        return View(continuous_estimate(p), DEFAULT_VIEW.elevation)
 
     def pick_view(self, azimuth_deg: float) -> dict:
         """The user says which way the car faces: the guess and the fit's prior from now on."""
@@ -205,6 +223,8 @@ class AnnotationSession:
         """A new revision; the marks refitted when ``refit`` (the fit's inputs changed), else the
         fit stays the current one (and refined if it was)."""
         self.revision += 1
+        if self.view_source == "classifier":
+            self.guess = self._classifier_guess()
         if refit:
             self.inputs_revision = self.revision
             self._refit()
