@@ -71,6 +71,27 @@ def test_a_region_of_a_template_seen_from_the_front_is_the_union_of_its_halves(b
     assert (lo + hi) / 2 == pytest.approx(500.0, abs=0.5)
 
 
+def test_a_rear_wheels_rim_reads_the_view_the_example_was_rendered_at(bench, example_reconstruction):
+    """The example was rendered at 30°: its rear wheel's rim, read from views 5° and 10° off
+    the one found (the hub kept where it was found), comes back to 30°; and a view turned by
+    the instrument keeps the hub in place."""
+    from carbody.fit.report import camera_report
+    from carbody.fit.wheels import WHEELS, arch_radii, grey_photo, hub_points
+    from carbody.policy import FitPolicy
+    from carbody.view.predict import read_image
+
+    fit = example_reconstruction.fit
+    camera, cp = camera_report(fit), fit.wireframe.control_points
+    rear = next(w for w in fit.wheels.as_dict()["wheels"] if w["wheel"] == "rear_left")
+    hub, radius = hub_points(cp)[WHEELS.index("rear_left")], float(arch_radii(cp)[WHEELS.index("rear_left")])
+    grey = grey_photo(read_image(REPO / "examples" / "car.png"))
+    for start in (camera["azimuth_deg"] - 5.0, camera["azimuth_deg"] + 5.0, camera["azimuth_deg"] + 10.0):
+        assert bench.rim_view_deg(grey, camera, hub, radius, rear["found_px"], start, FitPolicy()) == \
+            pytest.approx(30.0, abs=1.0)
+    from carbody.fit.report import project_with_camera
+    assert bench.camera_turned(camera, hub, 50.0)(hub[None])[0] == pytest.approx(project_with_camera(camera, hub[None])[0])
+
+
 @pytest.fixture(scope="module")
 def bench_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench_real_photos")
@@ -120,6 +141,11 @@ def test_metrics_are_finite_where_defined(bench_run):
         assert r["wheel_dist_pct"] is None or math.isfinite(r["wheel_dist_pct"])
         # the instrument projects with the fit's own camera: the marks land where the fit says
         assert r["camera_check_px"] < 0.05
+        # the rims' view only from rear wheels the fit found and trusted
+        trusted = {w["wheel"] for w in (json.loads((bench_run[0] / r["photo"] / "report.json").read_text())
+                                        ["fit"]["wheels"] or {}).get("wheels", []) if w["weight"] > 0.6}
+        assert set(r["rims"]) <= {w for w in trusted if w.startswith("rear")}
+        assert (r["rims_view_deg"] is None) == (not r["rims"])
 
 
 @needs_data

@@ -270,6 +270,24 @@ def test_a_circle_is_supported_all_round_and_a_straight_edge_adds_nothing():
     assert support[np.abs(radii - 30) > 2].max() < FIT_POLICY.wheel_circle_floor  # (4 sectors of 24)
 
 
+@pytest.mark.parametrize("angle_deg, stretch", [(0.0, 1.25), (90.0, 0.8), (30.0, None)])
+def test_a_rims_ellipse_is_found_from_a_circle_guess_and_says_how_it_is_stretched(angle_deg, stretch):
+    """A rim drawn 25 % wider along the car than up (or turned) is found from a circle of the
+    mean radius, its centre and stretch (extent along x over up) read back."""
+    import cv2
+
+    from carbody.fit.wheels import patch_edges, rim_ellipse
+
+    patch = np.full((140, 140), 200, np.float32)
+    cv2.ellipse(patch, (72, 66), (35, 28), angle_deg, 0, 360, 40.0, -1, cv2.LINE_AA)
+    ellipse = rim_ellipse(patch_edges(patch, np.ones_like(patch, bool)), np.array([70.0, 70.0]), 31.0, 24, rounds=6)
+    assert ellipse is not None and ellipse.sectors_seen == 24
+    assert ellipse.centre == pytest.approx([72.0, 66.0], abs=1.5)  # (Canny's edge pixels: a pixel or so)
+    a, c, s = np.radians(angle_deg), 35.0, 28.0
+    want = np.hypot(c * np.cos(a), s * np.sin(a)) / np.hypot(c * np.sin(a), s * np.cos(a))
+    assert ellipse.stretch() == pytest.approx(want if stretch is None else stretch, rel=0.03)
+
+
 def test_the_hubs_are_the_wireframe_s_wheel_centres_under_its_arch_tops(library):
     """The hubs the photo is searched round and the drawings above put their wheels at are the
     wheel centres the wireframe itself defines (:func:`carbody.wireframe.wheel_centre`, along the

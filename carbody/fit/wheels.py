@@ -445,17 +445,39 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
     return hub_px(top), top[0], runner, tuple((hub_px(n), n[0]) for n in near)
 
 
-def rim_ellipse_centre(edges: PatchEdges, centre: np.ndarray, radius: float, sectors: int,
-                       band: float = 0.15, alignment: float = 0.8, rounds: int = 3) -> np.ndarray | None:
-    """(2,) patch pixels: the centre of the ellipse that the edges along a wheel's strongest
-    circle (about ``centre`` (2,), ``radius`` px: the rim's edge, mostly) follow, or None.
+@dataclass(frozen=True)
+class RimEllipse:
+    """The ellipse a wheel's strongest circle makes in a warped patch (:func:`rim_ellipse`).
+
+    Attributes:
+        centre: (2,) patch pixels.
+        axes: (2,) its semi-axes, patch pixels, along its own frame's x and y.
+        angle: the turn of its own frame's x from the patch's, radians.
+        sectors_seen: of the ``sectors`` round it, how many hold an edge used.
+    """
+
+    centre: np.ndarray
+    axes: np.ndarray
+    angle: float
+    sectors_seen: int
+
+    def stretch(self) -> float:
+        """Its extent along the patch's x (the car) over its extent along y (up)."""
+        (a, b), c, s = self.axes, np.cos(self.angle), np.sin(self.angle)
+        return float(np.hypot(a * c, b * s) / np.hypot(a * s, b * c))
+
+
+def rim_ellipse(edges: PatchEdges, centre: np.ndarray, radius: float, sectors: int,
+                band: float = 0.15, alignment: float = 0.8, rounds: int = 3) -> RimEllipse | None:
+    """The ellipse that the edges along a wheel's strongest circle (about ``centre`` (2,),
+    ``radius`` px: the rim's edge, mostly) follow in a warped patch, or None.
 
     The warped patch shows the wheel as a circle only as far as the view found is right: a few
     degrees off in azimuth, elevation or distance, it is an ellipse, stretched and sheared. The
     edges within ``band`` of the circle whose gradient lies along its normal (cosine above
     ``alignment``) are fitted with an ellipse (OpenCV's AMS), and again with the edges along
-    that ellipse, ``rounds`` times; the centre is kept when the edges used run round at least
-    half of it (by ``sectors``) and it is no stretched blob."""
+    that ellipse, ``rounds`` times. None when too few edges lie along it or it is a stretched
+    blob (axes more than 1 : 0.6)."""
     import cv2
 
     c, axes, angle = np.asarray(centre, float), np.array([radius, radius]), 0.0
@@ -474,7 +496,14 @@ def rim_ellipse_centre(edges: PatchEdges, centre: np.ndarray, radius: float, sec
             return None
         c, axes, angle = np.array([cx, cy]), np.array([w, h]) / 2, np.radians(degrees)
     seen = np.unique(((np.arctan2(*(edges.xy[near] - c).T[::-1]) + np.pi) / (2 * np.pi) * sectors).astype(int))
-    return c if len(seen) >= sectors / 2 else None
+    return RimEllipse(c, axes, float(angle), len(seen))
+
+
+def rim_ellipse_centre(edges: PatchEdges, centre: np.ndarray, radius: float, sectors: int) -> np.ndarray | None:
+    """(2,) patch pixels: the centre of the wheel's :func:`rim_ellipse`, kept when the edges used
+    run round at least half of it (by ``sectors``); else None."""
+    ellipse = rim_ellipse(edges, centre, radius, sectors)
+    return ellipse.centre if ellipse is not None and ellipse.sectors_seen >= sectors / 2 else None
 
 
 @dataclass
