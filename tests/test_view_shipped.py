@@ -35,7 +35,7 @@ def test_shipped_weights_are_small_and_load_without_download():
 
     assert SHIPPED_WEIGHTS.stat().st_size < 6_000_000
     model, meta = load_classifier()
-    assert meta["num_classes"] == 24 and meta["input_size"] == 96
+    assert meta["num_classes"] == 24 and meta["input_size"] == 128
     assert len(meta["history"]["val_acc"]) >= 1
 
 

@@ -2,13 +2,13 @@
 
 ``import torch`` alone costs seconds of CPU in a fresh process (1.6 to 4.4 s measured), the
 largest single cost of ``carbody reconstruct`` on one photo. The network is small (2.25 M
-parameters, 96 × 96 input as shipped), so it is exported once at packaging time (with torch
+parameters, 128 × 128 input as shipped), so it is exported once at packaging time (with torch
 and the ``onnx`` package) to an ONNX file, which OpenCV's DNN module (``cv2.dnn``, already a
 dependency) reads and runs in a few milliseconds per picture:
 
     from carbody.view.onnx_net import export_weights, probabilities
     export_weights("view_mobilenetv2.pt", "view_mobilenetv2.onnx")    # torch + onnx, once
-    p = probabilities(x)     # x (B, 96, 96, 3) uint8 from carbody.view.train.to_square_input
+    p = probabilities(x)     # x (B, 128, 128, 3) uint8 from carbody.view.train.to_square_input
 
 The export folds every BatchNorm into its conv: the conv's weight is stored as the ``.pt``
 holds it (float16, so no rounding is added) beside a float32 per-output-channel scale
