@@ -80,7 +80,7 @@ Definitions (per photo):
   ellipse there turns round is the rim's view (:func:`rims_view`). A front wheel may be steered,
   so it is not read. Each rear wheel is read from 5° either side of the view found and from it;
   readings that agree within 2° count. On renders at known views (``bench_rims.py``) it is
-  0.4° off the truth at the median. Per photo the rims' mean; in summary, over the photos with
+  0.3° off the truth at the median. Per photo the rims' mean; in summary, over the photos with
   one: how many lie within 15° of the estimate, against the view found on the same photos; the
   median differences rims − estimate and view found − rims; the rims' lean from the estimate.
 - **Hubs found**: the wheels' hubs the fit found in the photo (``report["fit"]["wheels"]``),
