@@ -10,7 +10,7 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
     python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
     python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
-    python benchmarks/bench_view.py --speed [--weights W.pt|W.onnx] [--repeats 200]
+    python benchmarks/bench_view.py --speed [--weights W.pt|W.onnx] [--repeats 200] [--threads 1]
     python benchmarks/bench_view.py --photo-ablation [--epochs 40] [--count 4800] [--workdir DIR] [--only "B;C"]
                                     [--width 0.5] [--train-seed 1] [--measure LABEL=W.pt] [--table]
 
@@ -153,7 +153,8 @@ def inference_ms(image_path: Path, weights: str | None, repeats: int = 200) -> d
 def main_speed(args) -> int:
     """Per-picture inference as ``carbody view --box`` runs it (decode + crop + resize + the
     exported network in OpenCV's DNN module with mirror averaging, no torch), wall and CPU time,
-    one BLAS and one OpenCV thread; a ``.pt`` is exported to a temporary ``.onnx`` first. The load average is printed: on the shared machine
+    one BLAS thread and ``--threads`` OpenCV threads (1: as a batch worker runs it; the cores: as
+    ``carbody view`` runs it, OpenCV's default); a ``.pt`` is exported to a temporary ``.onnx`` first. The load average is printed: on the shared machine
     the wall time grows with it, the CPU time much less."""
     import cv2
     from threadpoolctl import threadpool_limits
@@ -162,6 +163,9 @@ def main_speed(args) -> int:
     from carbody.view.predict import crop_to_box, predict_view, read_image
     from carbody.view.train import to_square_input
 
+    if args.threads < 1:
+        print(f"bench_view: --threads must be at least 1, not {args.threads}", file=sys.stderr)
+        return 2
     weights = args.weights
     if weights and Path(weights).suffix == ".pt":
         from carbody.view.onnx_net import export_weights
@@ -178,10 +182,10 @@ def main_speed(args) -> int:
     size = load_onnx_classifier(onnx_weights_for(weights)).meta["input_size"]
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "
           f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} (1/5/15 min); OpenCV DNN {cv2.__version__}, {size} px input, "
-          f"1 thread; picture {Path(image).name if photos else 'synthetic'} with its box")
+          f"{args.threads} thread(s); picture {Path(image).name if photos else 'synthetic'} with its box")
     print("| call | wall ms median | wall ms 90th pct | CPU ms median |\n|---|---|---|---|")
     x = to_square_input(crop_to_box(read_image(image), box), size)[None]
-    cv2.setNumThreads(1)           # OpenCV's own pool: the DNN module's convolutions
+    cv2.setNumThreads(args.threads)  # OpenCV's own pool: the DNN module's convolutions
     calls = [("whole call (decode + crop + network), ",
               lambda mirror: predict_view(image, weights, mirror_average=mirror, box=box),
               ("one pass", "with mirror averaging (default)")),
@@ -683,6 +687,8 @@ def main() -> None:
     ap.add_argument("--speed", action="store_true",
                     help="inference time per picture as carbody view --box runs it (exported network, OpenCV DNN)")
     ap.add_argument("--repeats", type=int, default=200, help="--speed: timed calls per setting")
+    ap.add_argument("--threads", type=int, default=1,
+                    help="--speed: OpenCV threads (default 1, as a batch worker; the core count as `carbody view`)")
     args = ap.parse_args()
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
     if args.real:
