@@ -52,3 +52,20 @@ def test_the_table_averages_seeds_and_flags_renders_drawn_otherwise(bench, tmp_p
     assert "| D | 0.20 / 0.20 /" in out                           # seed to seed: 0.7 - 0.5
     assert "| shipped | 0.30 / 0.30 /" in out
     assert not any(k in rows for k in ("A", "C", "E", "F"))          # no results, no row
+
+
+def test_the_speed_run_times_every_call_on_the_threads_asked_and_refuses_none(bench, tmp_path):
+    """``--speed`` on a synthetic picture (no photo folder): four timed rows, the thread count in
+    its header; ``--threads 0`` is refused in one line with exit 2."""
+    import subprocess
+
+    script = str(REPO / "benchmarks" / "bench_view.py")
+    run = subprocess.run([sys.executable, script, "--speed", "--repeats", "3", "--threads", "2",
+                          "--photos", str(tmp_path)], capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "2 thread(s); picture synthetic" in run.stdout
+    rows = [line for line in run.stdout.splitlines() if line.startswith("| whole call") or line.startswith("| network")]
+    assert len(rows) == 4 and all(float(r.split("|")[2]) > 0 for r in rows)
+    bad = subprocess.run([sys.executable, script, "--speed", "--threads", "0"], capture_output=True, text=True,
+                         cwd=REPO, timeout=300)
+    assert bad.returncode == 2 and bad.stderr.strip().splitlines() == ["bench_view: --threads must be at least 1, not 0"]
