@@ -428,7 +428,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
            "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
            "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
-           "rims_view_deg": None, "rims": None, "rims_lean_deg": None, "rims_diff_deg": None, "fit_rims_diff_deg": None,
+           "rims_view_deg": None, "rims": None, "rims_lean_deg": None, "rims_diff_deg": None,
+           "fit_rims_diff_deg": None,
            "fallback": None, "camera_check_px": None,
            "mirrored_half": None, "stage_s": None}
     if outcome != "body":
@@ -487,8 +488,8 @@ def centroid_to_hub_px(photo: Photo, camera: dict, control_points: np.ndarray, w
 
 
 def angular_offset(a: float, b: float) -> float:
-    """a − b in degrees, wrapped to (−180, 180]."""
-    return -((b - a + 180.0) % 360.0 - 180.0)
+    """a − b in degrees, wrapped to [−180, 180)."""
+    return (a - b + 180.0) % 360.0 - 180.0
 
 
 def camera_turned(camera: dict, hub_mm: np.ndarray, azimuth_deg: float):
@@ -514,12 +515,11 @@ def rim_reading(grey: np.ndarray, camera: dict, hub_mm: np.ndarray, radius_mm: f
     (:func:`carbody.fit.wheels.wheel_patch`), the ellipse its strongest circle makes there
     (:func:`~carbody.fit.wheels.rim_ellipse`), and the azimuth whose stretch along the car over
     up (:func:`wheel_stretch`) turns that ellipse into a circle; None without a clear ellipse."""
-    from carbody.camera import apply_homography
-    from carbody.fit.wheels import PATCH_ARCH_PX, circle_support, patch_edges, rim_ellipse, wheel_patch
-
     import cv2
 
+    from carbody.camera import apply_homography
     from carbody.errors import AngleError
+    from carbody.fit.wheels import PATCH_ARCH_PX, circle_support, patch_edges, rim_ellipse, wheel_patch
 
     to_px = camera_turned(camera, hub_mm, azimuth_deg)
     radius_px = np.linalg.norm(np.subtract(*to_px(hub_mm + np.array([[0.0, 0.0, radius_mm], [0.0, 0.0, 0.0]]))))
@@ -534,7 +534,8 @@ def rim_reading(grey: np.ndarray, camera: dict, hub_mm: np.ndarray, radius_mm: f
     centre = apply_homography(np.linalg.inv(H), np.asarray(hub_px, dtype=float)[None])[0] - 0.5
     radii = np.arange(policy.wheel_radii[0] * PATCH_ARCH_PX, policy.wheel_radii[1] * PATCH_ARCH_PX, 1.0)
     support = circle_support(edges, centre[None], radii, policy.wheel_sectors, policy.wheel_alignment)[0]
-    ellipse = rim_ellipse(edges, centre, float(radii[np.argmax(support)]), policy.wheel_sectors, rounds=RIM_ELLIPSE_ROUNDS)
+    ellipse = rim_ellipse(edges, centre, float(radii[np.argmax(support)]), policy.wheel_sectors,
+                          rounds=RIM_ELLIPSE_ROUNDS)
     if ellipse is None or ellipse.sectors_seen < policy.wheel_sectors / 2:
         return None
     wanted = ellipse.stretch() * wheel_stretch(to_px, hub_mm)
@@ -561,8 +562,9 @@ def rim_view_deg(grey: np.ndarray, camera: dict, hub_mm: np.ndarray, radius_mm: 
 def rims_view(photo: Photo, camera: dict, control_points: np.ndarray, wheels: dict | None,
               min_weight: float = SURE_HUB_WEIGHT) -> dict[str, float]:
     """{rear wheel: azimuth°} the rims of the rear wheels the fit found in the photo and trusted
-    (weight over ``min_weight``) show, each read from :data:`RIM_STARTS_DEG` about the view found and kept when they agree within
-    :data:`RIM_AGREE_DEG` (module docstring); empty when none."""
+    (weight over ``min_weight``) show: each read from :data:`RIM_STARTS_DEG` about the view
+    found, and kept when the readings agree within :data:`RIM_AGREE_DEG` (module docstring);
+    empty when none."""
     from carbody.fit.wheels import WHEELS, arch_radii, grey_photo, hub_points
     from carbody.policy import FitPolicy
     from carbody.view.predict import read_image

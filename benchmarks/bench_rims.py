@@ -58,7 +58,8 @@ def run(template_count: int, views: tuple[int, ...]) -> list[dict]:
             rims = real.rims_view(photo, camera_report(fit), fit.wireframe.control_points, wheels, min_weight=0.0)
             rows.append({"template": name, "view": view, "view_off_deg": real.angular_offset(fit.view.azimuth, view),
                          "rims_off_deg": {w: real.angular_offset(a, view) for w, a in rims.items()},
-                         "rear_hubs_found": sum(w["wheel"].startswith("rear") for w in (wheels or {}).get("wheels", [])),
+                         "rear_hubs_found": sum(w["wheel"].startswith("rear")
+                                                for w in (wheels or {}).get("wheels", [])),
                          "seconds": time.perf_counter() - start})
             print(f"{name} at {view}°: view found {rows[-1]['view_off_deg']:+.1f}°, rims "
                   f"{ {w: round(d, 2) for w, d in rows[-1]['rims_off_deg'].items()} }", file=sys.stderr, flush=True)

@@ -154,8 +154,9 @@ def main_speed(args) -> int:
     """Per-picture inference as ``carbody view --box`` runs it (decode + crop + resize + the
     exported network in OpenCV's DNN module with mirror averaging, no torch), wall and CPU time,
     one BLAS thread and ``--threads`` OpenCV threads (1: as a batch worker runs it; the cores: as
-    ``carbody view`` runs it, OpenCV's default); a ``.pt`` is exported to a temporary ``.onnx`` first. The load average is printed: on the shared machine
-    the wall time grows with it, the CPU time much less."""
+    ``carbody view`` runs it, OpenCV's default); a ``.pt`` is exported to a temporary ``.onnx``
+    first. The load average is printed: on the shared machine the wall time grows with it, the
+    CPU time much less."""
     import cv2
     from threadpoolctl import threadpool_limits
 
