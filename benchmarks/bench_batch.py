@@ -208,7 +208,7 @@ def main(argv=None) -> int:
                 runs.append(run_one(manifest, Path(tmp) / f"out-{n}", n))
                 print(f"  {n} worker(s): {runs[-1]['photos_per_minute']:.1f} photos/min", file=sys.stderr)
     print(f"| workers | photos | done | wall (s) | of it starting workers (s) | photos/min, warm | "
-          f"photos/min incl. start | per photo in its worker, median (s) | view / fit / surfaces / write, median (s) "
+          f"photos/min with the start | per photo in its worker, median (s) | view / fit / surfaces / write, median (s) "
           f"| CPU per photo (s) | share of a core each worker got | load before |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in runs:

@@ -457,7 +457,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
         row["wheel_dv_pct"] = 100.0 * dv_px / size
         hub_px = centroid_to_hub_px(photo, camera, cp, fit.get("wheels"))
         row["centroid_to_hub_pct"] = None if hub_px is None else 100.0 * hub_px / size
-    row["rims"] = rims_view(photo, camera, cp, fit.get("wheels"))
+    row["rims"] = rims_view(photo.image, camera, cp, fit.get("wheels"))
     if row["rims"]:
         row["rims_view_deg"] = float(np.mean([found + angular_offset(a, found) for a in row["rims"].values()])) % 360.0
         row["fit_rims_diff_deg"] = float(angular_difference(found, row["rims_view_deg"]))
@@ -502,9 +502,13 @@ def camera_turned(camera: dict, hub_mm: np.ndarray, azimuth_deg: float):
     return lambda points: project_with_camera(turned, np.asarray(points, dtype=float)) + shift
 
 
-def wheel_stretch(to_px, hub_mm: np.ndarray, step_mm: float = 50.0) -> float:
-    """How long a step along the car looks in the photo at a hub, over a step up."""
-    uv = to_px(hub_mm + np.array([[0.0, 0.0, 0.0], [0.0, step_mm, 0.0], [0.0, 0.0, step_mm]]))
+def wheel_stretch(camera: dict, hub_mm: np.ndarray, azimuth_deg: float, step_mm: float = 50.0) -> float:
+    """How long a step along the car looks in the photo at a hub, over a step up, with the
+    report's ``camera`` turned to ``azimuth_deg`` (where the hub lands does not matter)."""
+    from carbody.fit.report import project_with_camera
+
+    steps = np.array([[0.0, 0.0, 0.0], [0.0, step_mm, 0.0], [0.0, 0.0, step_mm]])
+    uv = project_with_camera({**camera, "azimuth_deg": float(azimuth_deg)}, hub_mm + steps)
     return float(np.linalg.norm(uv[1] - uv[0]) / np.linalg.norm(uv[2] - uv[0]))
 
 
@@ -538,9 +542,9 @@ def rim_reading(grey: np.ndarray, camera: dict, hub_mm: np.ndarray, radius_mm: f
                           rounds=RIM_ELLIPSE_ROUNDS)
     if ellipse is None or ellipse.sectors_seen < policy.wheel_sectors / 2:
         return None
-    wanted = ellipse.stretch() * wheel_stretch(to_px, hub_mm)
+    wanted = ellipse.stretch() * wheel_stretch(camera, hub_mm, azimuth_deg)
     turns = azimuth_deg + np.arange(-40.0, 40.01, 0.25)
-    stretches = np.array([wheel_stretch(camera_turned(camera, hub_mm, a), hub_mm) for a in turns])
+    stretches = np.array([wheel_stretch(camera, hub_mm, a) for a in turns])
     return float(turns[np.argmin(np.abs(stretches - wanted))])
 
 
@@ -559,7 +563,7 @@ def rim_view_deg(grey: np.ndarray, camera: dict, hub_mm: np.ndarray, radius_mm: 
     return azimuth
 
 
-def rims_view(photo: Photo, camera: dict, control_points: np.ndarray, wheels: dict | None,
+def rims_view(image, camera: dict, control_points: np.ndarray, wheels: dict | None,
               min_weight: float = SURE_HUB_WEIGHT) -> dict[str, float]:
     """{rear wheel: azimuth°} the rims of the rear wheels the fit found in the photo and trusted
     (weight over ``min_weight``) show: each read from :data:`RIM_STARTS_DEG` about the view
@@ -572,7 +576,7 @@ def rims_view(photo: Photo, camera: dict, control_points: np.ndarray, wheels: di
     rear = [w for w in (wheels or {}).get("wheels", []) if w["wheel"].startswith("rear") and w["weight"] > min_weight]
     if not rear:
         return {}
-    grey, policy = grey_photo(read_image(photo.image)), FitPolicy()
+    grey, policy = grey_photo(read_image(image)), FitPolicy()
     hubs, radii = hub_points(control_points), arch_radii(control_points)
     out = {}
     for w in rear:
@@ -665,7 +669,7 @@ def fmt(v, spec: str = ".0f", signed: bool = False) -> str:
 
 
 def photo_table(rows: list[dict]) -> str:
-    head = ("| photo | outcome | time s (CPU) | view found / est. (Δ) ° | rims ° | residual % | length % | width % | "
+    head = ("| photo | outcome | time s (CPU) | view found / estimate (Δ) ° | rims ° | residual % | length % | width % | "
             "wheelbase % | IoU windshield | IoU rear window | IoU hood | wheel centres % (n) | fallback |")
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
     for r in rows:

@@ -54,8 +54,7 @@ def run(template_count: int, views: tuple[int, ...]) -> list[dict]:
             result = carbody.reconstruct(image, marks, library=library.without(name), name=name)
             fit = result.fit
             wheels = fit.wheels.as_dict() if fit.wheels is not None else None
-            photo = real.Photo(name, image, Path(), {}, {})  # rims_view reads photo.image: an array here
-            rims = real.rims_view(photo, camera_report(fit), fit.wireframe.control_points, wheels, min_weight=0.0)
+            rims = real.rims_view(image, camera_report(fit), fit.wireframe.control_points, wheels, min_weight=0.0)
             rows.append({"template": name, "view": view, "view_off_deg": real.angular_offset(fit.view.azimuth, view),
                          "rims_off_deg": {w: real.angular_offset(a, view) for w, a in rims.items()},
                          "rear_hubs_found": sum(w["wheel"].startswith("rear")
