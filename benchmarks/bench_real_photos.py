@@ -53,6 +53,9 @@ Definitions (per photo):
   shut lines lie inboard of both. On the near side ours then reaches a little past theirs.
   Between the marked nose and front corners the hood's front edge is the prior's; the
   people's lies further forward there.
+- **How the hoods miss** (:func:`hood_offset`): the share of our projected hood inside the human
+  one, the share of theirs ours covers, and how far our outline's centroid lies from theirs
+  along the car's length as the photo shows it at the hood (+: toward the windshield), % of S.
 - **Wheel centres**: the fitted car's four wheel centres at (±x, y, z) with (y, z) the
   wireframe's own wheel centres (:func:`carbody.wireframe.wheel_centre`: ≈ (0, 0) and
   (wheelbase, 0)) and x that of the fitted ``front_arch_top`` / ``rear_arch_top`` keypoint (the
@@ -427,7 +430,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "residual_px_mean": None,
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
            "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
-           "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
+           "hood": None, "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
            "rims_view_deg": None, "rims": None, "rims_lean_deg": None, "rims_diff_deg": None,
            "fit_rims_diff_deg": None,
            "fallback": None, "camera_check_px": None,
@@ -452,6 +455,9 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
     for key in ("length", "width", "wheelbase"):
         row[f"{key}_err_pct"] = pct_error(row["fitted_mm"][key], published.get(key))
     row["iou"], row["wheel_dist_px"], dv_px = how_it_sits(photo, camera, cp)
+    row["hood"] = hood_offset(photo, camera, cp)
+    if row["hood"]:
+        row["hood"]["back_pct"] = 100.0 * row["hood"]["back_px"] / size
     if row["wheel_dist_px"] is not None:
         row["wheel_dist_pct"] = 100.0 * row["wheel_dist_px"] / size
         row["wheel_dv_pct"] = 100.0 * dv_px / size
@@ -608,6 +614,34 @@ def how_it_sits(photo: Photo, camera: dict, control_points: np.ndarray) -> tuple
             float(np.mean([wheels[i, 1] - projected[j, 1] for i, j, _ in matches])))
 
 
+def hood_offset(photo: Photo, camera: dict, control_points: np.ndarray) -> dict | None:
+    """How the projected hood misses the human one (None where the photo has no hood polygon):
+    ``inside``, the share of ours inside theirs; ``covered``, the share of theirs ours covers;
+    ``back_px``, how far our outline's centroid lies from theirs toward the windshield, along the
+    car's length as the photo shows it at the hood (px; − : toward the nose)."""
+    from carbody.fit.report import project_with_camera
+
+    if "hood" not in photo.parts:
+        return None
+    human, ours = part_union(photo, "hood"), projected_region(camera, control_points, "hood")
+    if human.area <= 0 or ours.area <= 0:
+        return None
+    centre = region_outline_3d(control_points, "hood").mean(axis=0) * np.array([0.0, 1.0, 1.0])
+    ends = project_with_camera(camera, np.stack([centre, centre + [0.0, HOOD_STEP_MM, 0.0]]))
+    back = (ends[1] - ends[0]) / max(float(np.linalg.norm(ends[1] - ends[0])), 1e-9)
+    shift = np.asarray(ours.centroid.coords[0]) - np.asarray(human.centroid.coords[0])
+    common = human.intersection(ours).area
+    return {"inside": float(common / ours.area), "covered": float(common / human.area),
+            "back_px": float(shift @ back)}
+
+
+#: The summary counts hoods whose centroid lies more than this (% of S) back or forward of the human one.
+HOOD_SHIFT_NOTED_PCT = 2.0
+
+#: :func:`hood_offset` reads the car's length direction in the photo over this step (mm).
+HOOD_STEP_MM = 300.0
+
+
 def estimate_check(photos: list[Photo], rows: list[dict], out: Path) -> list[dict]:
     """For each photo whose view was found more than ``VIEW_OK_DEG`` from the estimate: the car
     fitted again with the estimate kept (``carbody fit --view EST --no-refine``, the elevation
@@ -757,6 +791,11 @@ def summarise(rows: list[dict]) -> dict:
         "median_residual_pct": median_or_none(r["residual_pct"] for r in rows),
         **{f"median_iou_{k}": median_or_none(r["iou"][k] for r in rows) for k, _ in REGION_PARTS},
         **{f"iou_{k}_measured": sum(r["iou"][k] is not None for r in rows) for k, _ in REGION_PARTS},
+        **{f"median_hood_{k}": median_or_none(r["hood"][k] for r in rows if r.get("hood"))
+           for k in ("inside", "covered", "back_pct")},
+        "hood_back_measured": sum(bool(r.get("hood")) for r in rows),
+        "hood_lies_back": sum(r["hood"]["back_pct"] > HOOD_SHIFT_NOTED_PCT for r in rows if r.get("hood")),
+        "hood_lies_forward": sum(r["hood"]["back_pct"] < -HOOD_SHIFT_NOTED_PCT for r in rows if r.get("hood")),
         "median_wheel_dist_pct": median_or_none(r["wheel_dist_pct"] for r in rows),
         "wheel_dist_measured": sum(r["wheel_dist_pct"] is not None for r in rows),
         "median_wheel_dv_pct": median_or_none(r["wheel_dv_pct"] for r in rows),
@@ -831,6 +870,11 @@ def summary_table(s: dict) -> str:
              f"| median IoU windshield ↔ front_glass | {with_n('windshield')} |",
              f"| median IoU rear window ↔ back_glass | {with_n('rear_window')} |",
              f"| median IoU hood ↔ hood | {with_n('hood')} |",
+             f"| the hoods, median: share of ours inside theirs / of theirs we cover | "
+             f"{fmt(s['median_hood_inside'], '.2f') or '–'} / {fmt(s['median_hood_covered'], '.2f') or '–'} |",
+             f"| ours from theirs along the car, median (+: toward the windshield), % of the car's image size; "
+             f"more than {HOOD_SHIFT_NOTED_PCT:.0f} % back / forward | {fmt(s['median_hood_back_pct'], '+.1f') or '–'}; "
+             f"{s['hood_lies_back']} / {s['hood_lies_forward']} (of {s['hood_back_measured']}) |",
              f"| median wheel-centre distance, % of the car's image size | "
              f"{fmt(s['median_wheel_dist_pct'], '.1f') or '–'} (of {s['wheel_dist_measured']}) |",
              f"| median signed vertical offset of those centres, annotated − projected (+: the projected "

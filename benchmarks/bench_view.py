@@ -434,6 +434,8 @@ def main_real(args) -> int:
         for i, p in enumerate(photos):
             cells = [f"{results[k][2][i]:.0f} ({results[k][0]['kinds'][i]})" for k in settings]
             print(f"| {p['name']} | {truth[i]:.0f} | " + " | ".join(cells) + " |")
+    if args.recolour:
+        recolour_table(photos, truth, args.weights)
     # Reliability on the car's box: P(top class or a neighbour) against |top class − estimate| ≤ 22.5°.
     s, probs, _ = results["car's box (part polygons)"]
     conf = neighbour_mass(probs)
@@ -446,6 +448,45 @@ def main_real(args) -> int:
         print(f"| {label} | {n} | {c:.2f} | {h:.2f} |")
     print(f"expected calibration error {ece:.3f}, mean P {conf.mean():.2f}, observed {hit.mean():.2f}")
     return 0
+
+
+def recoloured(image: np.ndarray, how: str) -> np.ndarray:
+    """The RGB picture with its red pixels (hue within 20° of red, saturation over 0.3) turned to
+    their grey (``how="red"``), or all of it grey (``how="grey"``)."""
+    import cv2
+
+    grey = np.repeat(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2)
+    if how == "grey":
+        return grey
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)   # OpenCV's hue runs 0-180
+    red = ((hsv[..., 0] <= 10) | (hsv[..., 0] >= 170)) & (hsv[..., 1] > 0.3 * 255)
+    return np.where(red[..., None], grey, image)
+
+
+def recolour_table(photos: list[dict], truth: np.ndarray, weights) -> None:
+    """The car's box classified again with the photos' reds turned grey, then all grey: does the
+    network tell a car's rear by its red lamps? (A guess of docs/view_classifier.md.)"""
+    from carbody.view.labels import continuous_estimate
+    from carbody.view.predict import predict_probabilities, read_image
+
+    boxes = [p["parts_box"] for p in photos]
+    print("the car's box with the photo's colours changed (--recolour)")
+    print("| picture | within ±15° | within ±30° | front/rear confusions | left/right confusions "
+          "| photos whose nearer end changed (front/rear) |")
+    print("|---|---|---|---|---|---|")
+    base = None
+    for label, how in (("as taken", None), ("reds turned grey", "red"), ("all grey", "grey")):
+        pictures = [read_image(p["image"]) for p in photos]
+        if how:
+            pictures = [recoloured(im, how) for im in pictures]
+        probs = predict_probabilities(pictures, weights, boxes=boxes)
+        pred = np.array([continuous_estimate(q) for q in probs])
+        s = real_scores(pred, truth)
+        ends = np.cos(np.radians(pred)) > 0              # the front the nearer end
+        changed = "" if base is None else str(int((ends != base).sum()))
+        base = ends if base is None else base
+        print(f"| {label} | {s['within15']:.2f} | {s['within30']:.2f} | {s['front_rear']:.2f} | "
+              f"{s['left_right']:.2f} | {changed} |")
 
 
 #: Rows of the photo-like ablation, cumulative: (key, label, PhotoLook settings, input px, renders of
@@ -685,6 +726,8 @@ def main() -> None:
     ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
+    ap.add_argument("--recolour", action="store_true",
+                    help="--real: also classify the car's box with its reds, then all of it, turned grey")
     ap.add_argument("--speed", action="store_true",
                     help="inference time per picture as carbody view --box runs it (exported network, OpenCV DNN)")
     ap.add_argument("--repeats", type=int, default=200, help="--speed: timed calls per setting")

@@ -132,6 +132,7 @@ COMMON_DEFAULTS: dict[str, float] = dict(
     hood_crown=0.012,  # fraction of hood length the hood centre line bulges up
     glass_bulge=0.025,  # fraction of glass length the glass centre line bulges out
     corner_w=0.86,  # front/rear top corner half width, fraction of half width
+    hood_edge_dip=30.0,  # mm the hood front edge's middle sags below its nose-to-corner arc
     sill_inset=28.0,  # mm the sill bottom sits inside the widest point
 )
 
@@ -397,7 +398,12 @@ def build_junctions_and_curves(d: DesignTable) -> dict[str, np.ndarray]:
                     ttc[2] - 20])
     rbc = np.array([hw * 0.92, y_rear - P("rear_corner_setback") * 0.8 - P("bumper_setback"),
                     rbbc[2] + 30])
+    # A bonnet's shut line runs down over the headlamps' tops between the nose and the corner
+    # (issue 24: the real photos' hoods lay forward of ours). Lowering the inner handle at the
+    # corner sags the edge's middle by 3/8 of it; the nose's handle stays level, so the edge and
+    # its mirror meet smoothly on the centre line.
     c["hood_front_edge"] = smooth_chain([nose, ftc], start_tangent=X)[0]
+    c["hood_front_edge"][2, 2] -= P("hood_edge_dip") * 8.0 / 3.0
     c["tail_top_edge"] = smooth_chain([ttc, rtc], start_tangent=X)[0]
 
     def bottom_mid(centre, corner):

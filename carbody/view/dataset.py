@@ -294,7 +294,8 @@ def _surface_patch(name: str, region: list, x0: float, x1: float, z0: float, z1:
     tris = np.r_[quads[:, [0, 1, 2]], quads[:, [1, 3, 2]]]
     if out_y < 0:                                       # counter-clockwise seen from outside
         tris = tris[:, ::-1]
-    return FaceMesh(name, np.where(hit[:, None], verts, 0.0), tris)
+    used, tris = np.unique(tris, return_inverse=True)   # only the grid points the cells use
+    return FaceMesh(name, verts[used], tris.reshape(-1, 3))
 
 
 def _box_mesh(name: str, lo: np.ndarray, hi: np.ndarray):
