@@ -51,8 +51,9 @@ Definitions (per photo):
   the template's hood region runs out to the fender's crest (``hood_side``) and back to the
   windshield's lower corners (``a_pillar_base``); the people outlined the bonnet panel, whose
   shut lines lie inboard of both. On the near side ours then reaches a little past theirs.
-  Between the marked nose and front corners the hood's front edge is the prior's; the
-  people's lies further forward there.
+  Between the marked nose and front corners the hood's front edge is the prior's (it sags over
+  the headlamps, as a shut line does); the people's also takes in the bonnet's lip down to the
+  grille, past the marked nose.
 - **How the hoods miss** (:func:`hood_offset`): the share of our projected hood inside the human
   one, the share of theirs ours covers, and how far our outline's centroid lies from theirs
   along the car's length as the photo shows it at the hood (+: toward the windshield), % of S.
