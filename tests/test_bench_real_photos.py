@@ -71,6 +71,29 @@ def test_a_region_of_a_template_seen_from_the_front_is_the_union_of_its_halves(b
     assert (lo + hi) / 2 == pytest.approx(500.0, abs=0.5)
 
 
+def test_a_hood_drawn_forward_of_ours_reads_as_ours_lying_back(bench, templates, tmp_path):
+    """The people's hood is ours moved 20 px toward the nose: ours lies 20 px back (toward the
+    windshield), and each covers the same share of the other."""
+    import shapely
+
+    from carbody.fit.report import project_with_camera
+
+    wireframe = templates[0][1]
+    cp = wireframe.control_points
+    camera = {"azimuth_deg": 60.0, "elevation_deg": 10.0, "roll_deg": 0.0, "distance_mm": None,
+              "aim_mm": [0.0, 0.0, 0.0], "scale_px_per_mm": 0.1, "offset_px": [500.0, 500.0], "to_photo": None}
+    ours = bench.projected_region(camera, cp, "hood")
+    nose, cowl = project_with_camera(camera, np.array([wireframe.keypoints()[n] for n in ("nose_centre", "cowl_centre")]))
+    forward = (nose - cowl) / np.linalg.norm(nose - cowl)
+    theirs = shapely.affinity.translate(ours, *(20.0 * forward))
+    photo = bench.Photo("made_up", tmp_path / "x.jpg", tmp_path / "x.json", {},
+                        {"hood": [np.asarray(theirs.exterior.coords)]})
+    got = bench.hood_offset(photo, camera, cp)
+    assert got["back_px"] == pytest.approx(20.0, abs=3.0)
+    assert got["inside"] == pytest.approx(got["covered"], abs=0.02) and 0.2 < got["inside"] < 0.95
+    assert bench.hood_offset(bench.Photo("no_hood", tmp_path / "x.jpg", tmp_path / "x.json", {}, {}), camera, cp) is None
+
+
 def test_a_rear_wheels_rim_reads_the_view_the_example_was_rendered_at(bench, example_reconstruction):
     """The example was rendered at 30°: its rear wheel's rim, read from views 5° and 10° off
     the one found (the hub kept where it was found), comes back to 30°; and a view turned by

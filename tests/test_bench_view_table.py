@@ -1,6 +1,7 @@
 """The photo ablation's table (``benchmarks/bench_view.py --photo-ablation --table``) from the
 rows' stored results: each cell the mean over the training seeds run, the seed-to-seed spread,
-and a row whose renders were drawn otherwise than the row says is flagged."""
+and a row whose renders were drawn otherwise than the row says is flagged. Also the speed run's
+options and ``--real --recolour``'s recolouring."""
 from __future__ import annotations
 
 import json
@@ -69,3 +70,18 @@ def test_the_speed_run_times_every_call_on_the_threads_asked_and_refuses_none(be
     bad = subprocess.run([sys.executable, script, "--speed", "--threads", "0"], capture_output=True, text=True,
                          cwd=REPO, timeout=300)
     assert bad.returncode == 2 and bad.stderr.strip().splitlines() == ["bench_view: --threads must be at least 1, not 0"]
+
+
+def test_recolouring_turns_the_reds_grey_and_leaves_the_rest(bench):
+    """``--recolour``: a red lamp loses its colour, a blue panel keeps it; all grey is grey."""
+    import numpy as np
+
+    picture = np.zeros((2, 2, 3), dtype=np.uint8)
+    picture[0, 0] = (200, 20, 30)       # a tail lamp's red
+    picture[0, 1] = (30, 40, 200)       # blue paint
+    picture[1, :] = (120, 120, 120)     # grey road
+    red = bench.recoloured(picture, "red")
+    assert len(set(red[0, 0])) == 1 and red[0, 0, 0] < 200
+    assert (red[0, 1] == picture[0, 1]).all() and (red[1] == picture[1]).all()
+    grey = bench.recoloured(picture, "grey")
+    assert all(len(set(px)) == 1 for px in grey.reshape(-1, 3))
