@@ -19,9 +19,8 @@ GLASS_REGIONS = ("windshield", "rear_window", "side_window")
 DEFLECTION_REL = 1e-3
 
 #: Angular deflection of the tessellation, radians. On a car's panels the linear deflection
-#: governs; the angle only refines tight folds. At 0.25 a crumpled body (a fit far outside the
-#: library) meshed into 200 000 triangles and took 3 s to render; at 0.5 it takes 1 s, and a
-#: sound body's picture moves by under 1 % of its pixels.
+#: governs; the angle only refines tight folds, so a crumpled body (a fit far outside the
+#: library) would otherwise mesh into a few hundred thousand triangles.
 ANGULAR_DEFLECTION = 0.5
 
 

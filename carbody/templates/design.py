@@ -398,10 +398,9 @@ def build_junctions_and_curves(d: DesignTable) -> dict[str, np.ndarray]:
                     ttc[2] - 20])
     rbc = np.array([hw * 0.92, y_rear - P("rear_corner_setback") * 0.8 - P("bumper_setback"),
                     rbbc[2] + 30])
-    # A bonnet's shut line runs down over the headlamps' tops between the nose and the corner
-    # (issue 24: the real photos' hoods lay forward of ours). Lowering the inner handle at the
-    # corner sags the edge's middle by 3/8 of it; the nose's handle stays level, so the edge and
-    # its mirror meet smoothly on the centre line.
+    # A bonnet's shut line runs down over the headlamps' tops between the nose and the corner.
+    # Lowering the inner handle at the corner sags the edge's middle by 3/8 of it; the nose's
+    # handle stays level, so the edge and its mirror meet smoothly on the centre line.
     c["hood_front_edge"] = smooth_chain([nose, ftc], start_tangent=X)[0]
     c["hood_front_edge"][2, 2] -= P("hood_edge_dip") * 8.0 / 3.0
     c["tail_top_edge"] = smooth_chain([ttc, rtc], start_tangent=X)[0]
