@@ -150,11 +150,18 @@ def inference_ms(image_path: Path, weights: str | None, repeats: int = 200) -> d
     return out
 
 
+def runtime_version() -> str:
+    """The network's runtime and its version, for the speed table's heading."""
+    import onnxruntime
+
+    return f"ONNX Runtime {onnxruntime.__version__}"
+
+
 def main_speed(args) -> int:
     """Per-picture inference as ``carbody view --box`` runs it (decode + crop + resize + the
-    exported network in OpenCV's DNN module with mirror averaging, no torch), wall and CPU time,
-    one BLAS thread and ``--threads`` OpenCV threads (1: as a batch worker runs it; the cores: as
-    ``carbody view`` runs it, OpenCV's default); a ``.pt`` is exported to a temporary ``.onnx``
+    exported network in ONNX Runtime with mirror averaging, no torch), wall and CPU time,
+    one BLAS thread and ``--threads`` threads for OpenCV and the network (1: as a batch worker
+    runs it; the cores: as ``carbody view`` runs it, OpenCV's default); a ``.pt`` is exported to a temporary ``.onnx``
     first. The load average is printed: on the shared machine the wall time grows with it, the
     CPU time much less."""
     import cv2
@@ -180,13 +187,13 @@ def main_speed(args) -> int:
         image, box = photos[0]["image"], photos[0]["parts_box"]
     else:                        # no shared photos: a synthetic 800 x 600 picture
         image, box = np.random.default_rng(0).integers(0, 255, (600, 800, 3), dtype=np.uint8), (100, 150, 700, 450)
+    cv2.setNumThreads(args.threads)  # OpenCV's pool, and the network's (carbody.view.onnx_net)
     size = load_onnx_classifier(onnx_weights_for(weights)).meta["input_size"]
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "
-          f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} (1/5/15 min); OpenCV DNN {cv2.__version__}, {size} px input, "
+          f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} (1/5/15 min); {runtime_version()}, {size} px input, "
           f"{args.threads} thread(s); picture {Path(image).name if photos else 'synthetic'} with its box")
     print("| call | wall ms median | wall ms 90th pct | CPU ms median |\n|---|---|---|---|")
     x = to_square_input(crop_to_box(read_image(image), box), size)[None]
-    cv2.setNumThreads(args.threads)  # OpenCV's own pool: the DNN module's convolutions
     calls = [("whole call (decode + crop + network), ",
               lambda mirror: predict_view(image, weights, mirror_average=mirror, box=box),
               ("one pass", "with mirror averaging (default)")),
@@ -729,10 +736,10 @@ def main() -> None:
     ap.add_argument("--recolour", action="store_true",
                     help="--real: also classify the car's box with its reds, then all of it, turned grey")
     ap.add_argument("--speed", action="store_true",
-                    help="inference time per picture as carbody view --box runs it (exported network, OpenCV DNN)")
+                    help="inference time per picture as carbody view --box runs it (exported network, ONNX Runtime)")
     ap.add_argument("--repeats", type=int, default=200, help="--speed: timed calls per setting")
     ap.add_argument("--threads", type=int, default=1,
-                    help="--speed: OpenCV threads (default 1, as a batch worker; the core count as `carbody view`)")
+                    help="--speed: OpenCV's and the network's threads (default 1, as a batch worker; the core count as `carbody view`)")
     args = ap.parse_args()
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
     if args.real:

@@ -36,7 +36,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from carbody.errors import BatchError
 
-#: What :func:`warm_up` can load: the model library, the view classifier (OpenCV DNN), and the
+#: What :func:`warm_up` can load: the model library, the view classifier (ONNX Runtime), and the
 #: kernel (OCP for the surfaces and STEP, VTK for the pictures), whose imports take seconds.
 WARM_PARTS = ("library", "classifier", "kernel")
 

@@ -1,4 +1,4 @@
-"""The exported view classifier: OpenCV's DNN module runs the shipped weights to torch's
+"""The exported view classifier: ONNX Runtime runs the shipped weights to torch's
 probabilities (|Δp| < 1e-4, same top class) on real pictures and noise, without importing torch.
 (Its speed is measured by ``benchmarks/bench_view.py --speed``, not here.)"""
 from __future__ import annotations

@@ -1,10 +1,11 @@
-"""The view classifier without torch at inference: the exported network run by OpenCV's DNN.
+"""The view classifier without torch at inference: the exported network run by ONNX Runtime.
 
 ``import torch`` alone costs seconds of CPU in a fresh process (1.6 to 4.4 s measured), the
 largest single cost of ``carbody reconstruct`` on one photo. The network is small (2.25 M
 parameters, 128 × 128 input as shipped), so it is exported once at packaging time (with torch
-and the ``onnx`` package) to an ONNX file, which OpenCV's DNN module (``cv2.dnn``, already a
-dependency) reads and runs in a few milliseconds per picture:
+and the ``onnx`` package) to an ONNX file, which ONNX Runtime (``onnxruntime``) reads and runs
+in a few milliseconds per picture. It ran the shipped network twice as fast as OpenCV's DNN
+module, which ran it before (``benchmarks/bench_view.py --speed``):
 
     from carbody.view.onnx_net import export_weights, probabilities
     export_weights("view_mobilenetv2.pt", "view_mobilenetv2.onnx")    # torch + onnx, once
@@ -13,8 +14,8 @@ dependency) reads and runs in a few milliseconds per picture:
 The export folds every BatchNorm into its conv: the conv's weight is stored as the ``.pt``
 holds it (float16, so no rounding is added) beside a float32 per-output-channel scale
 γ/√(σ² + ε) and a float32 bias β − μ·γ/√(σ² + ε). In the graph each weight is cast to float32
-and multiplied by its scale; OpenCV folds those constants once when it reads the file, so the
-forward pass is conv + bias (+ ReLU6 as a clip) and nothing else. Storing the already-folded
+and multiplied by its scale; the runtime folds those constants once when it loads the file, so
+the forward pass is conv + bias (+ ReLU6 as a clip) and nothing else. Storing the already-folded
 weight in float16 instead would round it a second time (measured max |Δp| 1.0e-3 against
 torch, against 4e-7 this way).
 
@@ -29,7 +30,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -161,39 +161,41 @@ def export_weights(pt_path: str | Path, onnx_path: str | Path) -> dict:
 
 @dataclass
 class OnnxClassifier:
-    """The exported MobileNetV2, run by OpenCV's DNN module.
+    """The exported MobileNetV2, run by ONNX Runtime.
 
     Attributes:
-        net: the ``cv2.dnn.Net`` read from the ``.onnx``.
+        session: the ``onnxruntime.InferenceSession`` of the ``.onnx`` (its ``run`` may be called
+            from several threads at once).
         meta: the metadata beside it (``num_classes``, ``input_size``, ``mean``, ``std``, ...).
-        lock: one forward pass at a time (a ``cv2.dnn.Net`` keeps its input between calls).
     """
 
-    net: object
+    session: object
     meta: dict
-    lock: threading.Lock
 
     @classmethod
-    def from_file(cls, path: str | Path) -> "OnnxClassifier":
-        """The network of an ``.onnx`` written by :func:`export_weights` (and its ``.json``).
+    def from_file(cls, path: str | Path, threads: int = 1) -> "OnnxClassifier":
+        """The network of an ``.onnx`` written by :func:`export_weights` (and its ``.json``),
+        run on ``threads`` threads.
 
         Raises:
             ViewError: not such a file, or its metadata missing.
         """
-        import cv2
+        import onnxruntime
 
         path = Path(path)
         try:
             meta = json.loads(meta_path(path).read_text())
             if meta.get("format") != ONNX_FORMAT:
                 raise ValueError(meta.get("format"))
-            net = cv2.dnn.readNetFromONNX(str(path))
-            if net.empty():
-                raise ValueError("empty network")
+            options = onnxruntime.SessionOptions()
+            options.intra_op_num_threads = max(1, int(threads))
+            options.inter_op_num_threads = 1
+            options.log_severity_level = 3          # errors only: no warnings on stderr
+            session = onnxruntime.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
         except Exception as exc:  # missing metadata, truncated or foreign file
             raise ViewError(f"{path}: not an exported view classifier with its .json beside it "
                             f"({type(exc).__name__})") from None
-        return cls(net, meta, threading.Lock())
+        return cls(session, meta)
 
     def network_input(self, images: np.ndarray) -> np.ndarray:
         """(B, 3, S, S) float32 network input from (B, S, S, 3) uint8 square pictures:
@@ -209,9 +211,8 @@ class OnnxClassifier:
         size = int(self.meta["input_size"])
         if x.ndim != 4 or x.shape[1:] != (3, size, size):
             raise ViewError(f"the network takes (N, 3, {size}, {size}) input, not {x.shape}")
-        with self.lock:
-            self.net.setInput(np.ascontiguousarray(x))
-            return np.array(self.net.forward(), dtype=np.float32).reshape(len(x), -1)
+        (out,) = self.session.run(["logits"], {"x": np.ascontiguousarray(x)})
+        return np.asarray(out, dtype=np.float32).reshape(len(x), -1)
 
 
 def softmax(logits: np.ndarray) -> np.ndarray:
@@ -221,24 +222,28 @@ def softmax(logits: np.ndarray) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=4)
-def _load(path_text: str, mtime_ns: int) -> OnnxClassifier:  # mtime_ns: cache key only
-    net = OnnxClassifier.from_file(path_text)
+def _load(path_text: str, mtime_ns: int, threads: int) -> OnnxClassifier:  # mtime_ns: cache key only
+    net = OnnxClassifier.from_file(path_text, threads)
     if int(net.meta["num_classes"]) != N_CLASSES:
         raise ViewError(f"{path_text}: has {net.meta['num_classes']} classes, expected {N_CLASSES}")
     return net
 
 
 def load_onnx_classifier(onnx_path: str | Path | None = None) -> OnnxClassifier:
-    """The network of an ``.onnx`` (default: the shipped one), read once per file and process
-    (and again when the file changes).
+    """The network of an ``.onnx`` (default: the shipped one), read once per file, process and
+    thread count (and again when the file changes). It runs on as many threads as OpenCV is set
+    to (``cv2.getNumThreads()``: the cores by default, 1 in a batch worker), one setting for the
+    process's picture work.
 
     Raises:
         ViewError: missing or bad file, or not 24 classes.
     """
+    import cv2
+
     from carbody.inputs import MAX_WEIGHTS_BYTES, input_file
 
     path = input_file(Path(onnx_path) if onnx_path else SHIPPED_ONNX, "weights file", ViewError, MAX_WEIGHTS_BYTES)
-    return _load(str(path), path.stat().st_mtime_ns)
+    return _load(str(path), path.stat().st_mtime_ns, max(1, cv2.getNumThreads()))
 
 
 def probabilities(images: np.ndarray, onnx_path: str | Path | None = None,

@@ -310,7 +310,7 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
                           mirror_average: bool = True, boxes: list | None = None,
                           temperature: float | None = None) -> np.ndarray:
     """(B, 24) class probabilities of a batch of pictures (paths or arrays): through the exported
-    network in OpenCV's DNN module (:mod:`carbody.view.onnx_net`, no torch to import) for the
+    network in ONNX Runtime (:mod:`carbody.view.onnx_net`, no torch to import) for the
     shipped weights or an ``.onnx``, through torch for a ``.pt`` file.
 
     Args:
