@@ -64,6 +64,11 @@ def warm_up(parts: tuple[str, ...] = WARM_PARTS) -> dict[str, float]:
     Runs in each worker (:class:`CarbodyWorker`); calling it again costs nothing.
     """
     global _THREAD_LIMITS
+    import cv2
+
+    # OpenCV keeps a pool of its own (GrabCut), and the view classifier's session takes its
+    # thread count from it when it is made (carbody.view.onnx_net): set it first.
+    cv2.setNumThreads(1)
     seconds = {}
     for part in parts:
         start = time.perf_counter()
@@ -86,13 +91,10 @@ def warm_up(parts: tuple[str, ...] = WARM_PARTS) -> dict[str, float]:
         seconds[part] = time.perf_counter() - start
     # After the imports, so the BLAS and OpenMP libraries they loaded are limited too (a Dask
     # nanny also sets OMP/OPENBLAS/MKL_NUM_THREADS=1 for the processes it starts; a worker
-    # started some other way may not have). OpenCV keeps a pool of its own (the view
-    # classifier's convolutions, GrabCut).
-    import cv2
+    # started some other way may not have).
     from threadpoolctl import threadpool_limits
 
     _THREAD_LIMITS = threadpool_limits(1)
-    cv2.setNumThreads(1)
     return seconds
 
 

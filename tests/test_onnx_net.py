@@ -161,3 +161,22 @@ def test_the_shipped_and_onnx_weights_run_in_opencv_and_a_pt_file_in_torch(tmp_p
     assert onnx_weights_for(None) == SHIPPED_ONNX
     assert onnx_weights_for(tmp_path / "mine.onnx") == tmp_path / "mine.onnx"
     assert onnx_weights_for(str(tmp_path / "mine.pt")) is None
+
+
+def test_the_network_runs_on_as_many_threads_as_opencv_is_set_to():
+    """One knob for the process's picture work: a batch worker sets OpenCV to one thread before
+    it loads the classifier (carbody.cluster.warm_up), and the network then runs on one."""
+    import cv2
+
+    before = cv2.getNumThreads()
+    try:
+        cv2.setNumThreads(1)
+        one = load_onnx_classifier()
+        cv2.setNumThreads(2)
+        two = load_onnx_classifier()
+        assert one.session.get_session_options().intra_op_num_threads == 1
+        assert two.session.get_session_options().intra_op_num_threads == 2
+        x = one.network_input(np.zeros((1, one.meta["input_size"], one.meta["input_size"], 3), np.uint8))
+        assert np.allclose(one.logits(x), two.logits(x), atol=1e-4)
+    finally:
+        cv2.setNumThreads(before)
