@@ -152,9 +152,9 @@ def inference_ms(image_path: Path, weights: str | None, repeats: int = 200) -> d
 
 def runtime_version() -> str:
     """The network's runtime and its version, for the speed table's heading."""
-    import onnxruntime
+    from carbody.view.onnx_net import onnxruntime_module
 
-    return f"ONNX Runtime {onnxruntime.__version__}"
+    return f"ONNX Runtime {onnxruntime_module().__version__}"
 
 
 def main_speed(args) -> int:

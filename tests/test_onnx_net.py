@@ -180,3 +180,22 @@ def test_the_network_runs_on_as_many_threads_as_opencv_is_set_to():
         assert np.allclose(one.logits(x), two.logits(x), atol=1e-4)
     finally:
         cv2.setNumThreads(before)
+
+
+def test_the_network_runs_without_writing_under_home_or_a_word_on_stderr(tmp_path):
+    """ONNX Runtime's Linux builds keep a telemetry device ID under ~/.cache unless told not to:
+    carbody tells it, so a run leaves the user's home as it was and says nothing on stderr."""
+    import os
+
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("ORT_DISABLE_TELEMETRY", "XDG_CACHE_HOME")}
+    env["HOME"] = str(home)
+    proc = subprocess.run([sys.executable, "-c",
+                           "import numpy as np\n"
+                           "from carbody.view.onnx_net import load_onnx_classifier, probabilities\n"
+                           "n = load_onnx_classifier().meta['input_size']\n"
+                           "print(probabilities(np.zeros((1, n, n, 3), np.uint8)).shape)"],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0 and proc.stdout.strip() == "(1, 24)" and proc.stderr == "", proc.stderr
+    assert list(home.rglob("*")) == []

@@ -30,6 +30,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -180,8 +181,7 @@ class OnnxClassifier:
         Raises:
             ViewError: not such a file, or its metadata missing.
         """
-        import onnxruntime
-
+        onnxruntime = onnxruntime_module()
         path = Path(path)
         try:
             meta = json.loads(meta_path(path).read_text())
@@ -213,6 +213,16 @@ class OnnxClassifier:
             raise ViewError(f"the network takes (N, 3, {size}, {size}) input, not {x.shape}")
         (out,) = self.session.run(["logits"], {"x": np.ascontiguousarray(x)})
         return np.asarray(out, dtype=np.float32).reshape(len(x), -1)
+
+
+def onnxruntime_module():
+    """``onnxruntime``, its telemetry off unless the user has set ``ORT_DISABLE_TELEMETRY`` (ONNX
+    Runtime's Linux builds otherwise keep a device ID under ``~/.cache`` and send usage events;
+    the variable must be set before its first session)."""
+    os.environ.setdefault("ORT_DISABLE_TELEMETRY", "1")
+    import onnxruntime
+
+    return onnxruntime
 
 
 def softmax(logits: np.ndarray) -> np.ndarray:
