@@ -526,16 +526,13 @@ def rim_reading(grey: np.ndarray, camera: dict, hub_mm: np.ndarray, radius_mm: f
     (:func:`carbody.fit.wheels.wheel_patch`), the ellipse its strongest circle makes there
     (:func:`~carbody.fit.wheels.rim_ellipse`), and the azimuth whose stretch along the car over
     up (:func:`wheel_stretch`) turns that ellipse into a circle; None without a clear ellipse."""
-    import cv2
-
     from carbody.camera import apply_homography
     from carbody.errors import AngleError
-    from carbody.fit.wheels import PATCH_ARCH_PX, circle_support, patch_edges, rim_ellipse, wheel_patch
+    from carbody.fit.wheels import circle_support, patch_edges, patch_radii, patch_source, rim_ellipse, wheel_patch
 
     to_px = camera_turned(camera, hub_mm, azimuth_deg)
     radius_px = np.linalg.norm(np.subtract(*to_px(hub_mm + np.array([[0.0, 0.0, radius_mm], [0.0, 0.0, 0.0]]))))
-    reduce = min(1.0, 1.5 * PATCH_ARCH_PX / radius_px)  # as the hub's search reads it: no aliasing
-    small = grey if reduce == 1.0 else cv2.resize(grey, None, fx=reduce, fy=reduce, interpolation=cv2.INTER_AREA)
+    small, reduce = patch_source(grey, radius_px)  # as the hub's search reads it
     try:
         patch, valid, H = wheel_patch(small, to_px, hub_mm, radius_mm, policy.wheel_window + policy.wheel_radii[1],
                                       1.0, reduce)
@@ -543,7 +540,7 @@ def rim_reading(grey: np.ndarray, camera: dict, hub_mm: np.ndarray, radius_mm: f
         return None
     edges = patch_edges(patch, valid)
     centre = apply_homography(np.linalg.inv(H), np.asarray(hub_px, dtype=float)[None])[0] - 0.5
-    radii = np.arange(policy.wheel_radii[0] * PATCH_ARCH_PX, policy.wheel_radii[1] * PATCH_ARCH_PX, 1.0)
+    radii = patch_radii(policy)
     support = circle_support(edges, centre[None], radii, policy.wheel_sectors, policy.wheel_alignment)[0]
     ellipse = rim_ellipse(edges, centre, float(radii[np.argmax(support)]), policy.wheel_sectors,
                           rounds=RIM_ELLIPSE_ROUNDS)

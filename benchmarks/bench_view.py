@@ -481,17 +481,17 @@ def recolour_table(photos: list[dict], truth: np.ndarray, weights) -> None:
     print("| picture | within ±15° | within ±30° | front/rear confusions | left/right confusions "
           "| photos whose nearer end changed (front/rear) |")
     print("|---|---|---|---|---|---|")
+    taken = [read_image(p["image"]) for p in photos]
     base = None
     for label, how in (("as taken", None), ("reds turned grey", "red"), ("all grey", "grey")):
-        pictures = [read_image(p["image"]) for p in photos]
-        if how:
-            pictures = [recoloured(im, how) for im in pictures]
+        pictures = [recoloured(im, how) for im in taken] if how else taken
         probs = predict_probabilities(pictures, weights, boxes=boxes)
         pred = np.array([continuous_estimate(q) for q in probs])
         s = real_scores(pred, truth)
         ends = np.cos(np.radians(pred)) > 0              # the front the nearer end
-        changed = "" if base is None else str(int((ends != base).sum()))
-        base = ends if base is None else base
+        if base is None:
+            base = ends
+        changed = "" if how is None else str(int((ends != base).sum()))
         print(f"| {label} | {s['within15']:.2f} | {s['within30']:.2f} | {s['front_rear']:.2f} | "
               f"{s['left_right']:.2f} | {changed} |")
 

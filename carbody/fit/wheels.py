@@ -374,6 +374,22 @@ def concentric_score(support: np.ndarray, floor: float, cap: float) -> np.ndarra
     return np.clip(support - floor, 0.0, cap - floor).sum(axis=-1)
 
 
+def patch_source(grey: np.ndarray, radius_px: float) -> tuple[np.ndarray, float]:
+    """(photo, reduce): what a wheel's patch reads, the photo at about the patch's own resolution
+    (a wheel ``radius_px`` large is reduced first: a bilinear warp would alias it), and by how
+    much it was reduced (:func:`wheel_patch`'s ``reduce``)."""
+    import cv2
+
+    reduce = min(1.0, 1.5 * PATCH_ARCH_PX / radius_px)
+    small = grey if reduce == 1.0 else cv2.resize(grey, None, fx=reduce, fy=reduce, interpolation=cv2.INTER_AREA)
+    return small, reduce
+
+
+def patch_radii(policy: FitPolicy) -> np.ndarray:
+    """The circles' radii looked for in a wheel's patch, patch pixels."""
+    return np.arange(policy.wheel_radii[0] * PATCH_ARCH_PX, policy.wheel_radii[1] * PATCH_ARCH_PX, 1.0)
+
+
 def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px: float, policy: FitPolicy,
               distortions: list[tuple[float, float]]):
     """(hub (2,) photo px, score, runner-up's score, rivals) of the best concentric circles in the
@@ -385,11 +401,8 @@ def _find_hub(grey: np.ndarray, to_px, hub: np.ndarray, radius: float, radius_px
 
     window = policy.wheel_window  # arch radii round the predicted hub
     half = window + policy.wheel_radii[1]
-    # the patch reads the photo at about its own resolution: a large wheel is reduced first (a
-    # bilinear warp would alias it)
-    reduce = min(1.0, 1.5 * PATCH_ARCH_PX / radius_px)
-    small = grey if reduce == 1.0 else cv2.resize(grey, None, fx=reduce, fy=reduce, interpolation=cv2.INTER_AREA)
-    radii_px = np.arange(policy.wheel_radii[0] * PATCH_ARCH_PX, policy.wheel_radii[1] * PATCH_ARCH_PX, 1.0)
+    small, reduce = patch_source(grey, radius_px)
+    radii_px = patch_radii(policy)
     floor, cap = policy.wheel_circle_floor, policy.wheel_circle_cap
     best = None
     for aspect, shear in distortions:
