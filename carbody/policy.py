@@ -140,6 +140,12 @@ class FitPolicy:
     #: fraction of their spread, whatever the method: a car no better than a guess.
     misses_marks_spread: float = 0.05
 
+    #: A full solve at a pinhole view is no fit when its marks' points, projected through the
+    #: real camera, miss the marks by more than its linearised camera said, by over this
+    #: fraction of their spread (:meth:`~carbody.fit.hypothesis.Scorer.camera_holds`; the
+    #: views the real photos settle at stay under 0.01, a car bent through the camera ~4).
+    linearised_camera_spread: float = 0.25
+
     #: A fit is refused (``contradicts``: exit 2 unless forced) only where the marks contradict
     #: each other, far past both notes: −log evidence per coordinate above this (the
     #: leave-one-out cars' other end scores ≥ 34.9, their own view ≤ 6.1 at 5 px of noise) ...

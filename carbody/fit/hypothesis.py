@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from carbody.camera import View
+from carbody.camera import View, project
 from carbody.errors import AngleError, FitError
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
 from carbody.fit.options import FitOptions
@@ -208,6 +208,24 @@ class Scorer:
         sol.evidence_px += charge
         return sol
 
+    def camera_holds(self, view: View, kept: np.ndarray, solution: MixSolution) -> bool:
+        """Whether the solve's camera, linearised at the shape it started from, still holds at
+        the shape it found: the kept marks' points, projected through the real pinhole camera,
+        lie within ``linearised_camera_spread`` of the marks' spread as far from the marks as the
+        solve says. A car bent far toward the camera can meet the marks only in the linearised
+        camera; its score then describes no car, and such a view could win the search."""
+        if view.distance is None or solution.shape is None:
+            return True
+        from carbody.fit.solve import MAX_PERSPECTIVE_FACTOR
+
+        slots = [s for s, k in zip(self.marks.slots, kept) if k]
+        points = solution.shape.reshape(-1, 3)[[s.point_index for s in slots]] * np.array([s.sign for s in slots])
+        uv = self.marks.uv[kept]
+        seen = np.linalg.norm(project(points, view, solution.scale, solution.offset,
+                                      max_factor=MAX_PERSPECTIVE_FACTOR) - uv, axis=1)
+        excess = float(seen.mean() - np.mean(solution.residual_px))
+        return excess <= self.policy.linearised_camera_spread * self.marks.spread
+
     def score(self, view: View, kept: np.ndarray, solution: MixSolution) -> tuple[float, float]:
         """(the hypothesis' score, its view prior's share), nats."""
         prior = self.prior.cost(view)
@@ -235,6 +253,8 @@ class Scorer:
         except (FitError, AngleError):
             return None
         settled = sol.view if sol.view is not None else view
+        if not cheap and not self.camera_holds(settled, kept, sol):
+            return None
         score, prior = self.score(settled, kept, sol)
         return Hypothesis(settled, self.marks, kept, hidden, sol, score, prior, {})
 
