@@ -1,0 +1,52 @@
+"""The re-marking benchmark re-marks as it says (marks kept, at least six, moved by the noise
+asked) and, where ``../shared/realphotos`` is present, runs a photo and a re-marking of it."""
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from tests.conftest import REPO
+
+DATA = REPO.parent / "shared" / "realphotos"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import bench_real_resample
+
+    return bench_real_resample
+
+
+MARKS = {f"mark{i}": [100.0 + 10 * i, 200.0 - 5 * i] for i in range(12)}
+
+
+def test_a_remarking_keeps_some_marks_moved_by_the_noise(bench):
+    rng = np.random.default_rng(3)
+    draws = [bench.remarked(MARKS, rng, 0.8, 2.0) for _ in range(40)]
+    assert all(set(d) <= set(MARKS) for d in draws)
+    assert all(len(d) >= bench.MIN_MARKS for d in draws)
+    assert 0.7 < np.mean([len(d) for d in draws]) / len(MARKS) < 0.9
+    moves = np.concatenate([[np.subtract(d[n], MARKS[n]) for n in d] for d in draws])
+    assert np.std(moves) == pytest.approx(2.0, rel=0.15)
+
+
+def test_too_few_kept_are_topped_up_to_six(bench):
+    rng = np.random.default_rng(0)
+    assert len(bench.remarked(MARKS, rng, 0.01, 0.0)) == bench.MIN_MARKS
+    few = {n: MARKS[n] for n in list(MARKS)[:4]}
+    assert bench.remarked(few, rng, 0.01, 0.0) == {n: tuple(v) for n, v in few.items()}
+
+
+@pytest.mark.skipif(not (DATA / "parts.json").exists(), reason=f"no real-photo data at {DATA}")
+def test_a_photo_and_a_remarking_of_it_come_out(bench, tmp_path, capsys):
+    out = tmp_path / "resample.json"
+    assert bench.main(["--photos", "te24", "--draws", "1", "--workers", "1", "--json", str(out)]) == 0
+    rows = json.loads(out.read_text())["rows"]
+    assert [r["draw"] for r in rows] == [0, 1]
+    assert all(r["outcome"] in ("body", "refused", "error", "traceback") for r in rows)
+    assert rows[0]["outcome"] == "body" and rows[0]["marks"] == 19
+    assert "| own marks | 1 |" in capsys.readouterr().out
