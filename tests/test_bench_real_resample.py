@@ -50,3 +50,23 @@ def test_a_photo_and_a_remarking_of_it_come_out(bench, tmp_path, capsys):
     assert all(r["outcome"] in ("body", "refused", "error", "traceback") for r in rows)
     assert rows[0]["outcome"] == "body" and rows[0]["marks"] == 19
     assert "| own marks | 1 |" in capsys.readouterr().out
+
+
+@pytest.mark.skipif(not (DATA / "parts.json").exists(), reason=f"no real-photo data at {DATA}")
+def test_a_stray_click_the_car_bends_to_follow_is_left_out(bench):
+    """The benchmark's second re-marking of cps_te30 (a front view, ten marks, front_top_corner
+    without its twin): the car bent its depth to follow that lone click, 63 nats per coordinate,
+    and the fit was refused as contradictory. Each mark tried out in turn finds it."""
+    from carbody.pipeline import reconstruct
+
+    photos = bench.load_photos(DATA)
+    i = [p.name for p in photos].index("cps_te30")
+    photo = photos[i]
+    size, _ = bench.car_image_size(photo)
+    rng = np.random.default_rng([0, i])
+    marks = [bench.remarked(photo.meta["keypoints"], rng, 0.8, 0.005 * size) for _ in range(2)][1]
+    assert "front_top_corner_right" in marks and "front_top_corner" not in marks
+    fit = reconstruct(str(photo.image), marks).fit
+    assert "front_top_corner_right" in fit.diagnostics.rejected
+    assert fit.diagnostics.evidence_per_coordinate < 10.0  # the policy's poor_fit_evidence
+    assert abs((fit.view.azimuth + 180) % 360 - 180) < 15

@@ -140,6 +140,8 @@ class Scorer:
         #: −log density of a misplaced mark: a click anywhere on the photo, at the prior chance of one
         self.outlier_nats = float(np.log(float(w) * float(h)) - np.log(self.policy.outlier_probability))
         self._solves = [0]  # shared by the scorer's copies (with_marks, with_noise): the fit's whole cost
+        #: (k,) bool: marks every hypothesis leaves out (:meth:`excluding`), or None
+        self.excluded: np.ndarray | None = None
 
     @property
     def fewest_kept(self) -> int:
@@ -159,6 +161,16 @@ class Scorer:
         other.marks = marks
         row = {n: i for i, n in enumerate(self._facing.names)}
         other._rows = np.array([row[n] for n in marks.names])
+        return other
+
+    def excluding(self, index: int) -> "Scorer":
+        """The same scorer with mark ``index`` left out of every hypothesis too (and those it
+        already leaves out): a misplaced click found by trying each mark out
+        (:func:`carbody.fit.robust.left_out_in_turn`)."""
+        other = object.__new__(Scorer)
+        other.__dict__.update(self.__dict__)
+        other.excluded = np.zeros(len(self.marks.slots), dtype=bool) if self.excluded is None else self.excluded.copy()
+        other.excluded[index] = True
         return other
 
     def with_noise(self, factor: float, field_scale: float | None = None) -> "Scorer":
@@ -242,6 +254,8 @@ class Scorer:
 
         hidden = self.hidden(view)
         kept = ~hidden if kept is None else (np.asarray(kept, dtype=bool) & ~hidden)
+        if self.excluded is not None:
+            kept = kept & ~self.excluded
         if kept.sum() < self.fewest_kept or hidden.sum() > self.policy.max_rejected_fraction * len(hidden):
             return None  # the names say the photo is not taken from here
         try:

@@ -36,7 +36,7 @@ from carbody.fit.hypothesis import Hypothesis, Marks, Scorer
 from carbody.fit.keypoints_io import check_keypoints
 from carbody.fit.options import FitOptions, check_wheelbase
 from carbody.fit.result import FitResult
-from carbody.fit.robust import explains_poorly, marks_noise, twin_exchanges
+from carbody.fit.robust import explains_poorly, left_out_in_turn, marks_noise, twin_exchanges
 from carbody.fit.search import distinct, refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.size import SizeEstimate, estimate_size
@@ -109,10 +109,11 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
         polish = _polisher(options, search_plan)
         if options.robust_marks:  # (every mark fitted as named otherwise)
             hypothesis, scorer = twin_exchanges(scorer, hypothesis, polish, alternatives)
+            hypothesis, scorer = left_out_in_turn(scorer, hypothesis, polish)
         unsettled = not hypothesis.kept.all() or explains_poorly(hypothesis, options.policy)
-        if hypothesis.renamed and options.refine and unsettled:
-            # the names exchanged, the marks are other marks; where the view found for the names
-            # clicked still leaves marks out (or fits poorly), it is searched again for them
+        if (hypothesis.renamed or scorer.excluded is not None) and options.refine and unsettled:
+            # the names exchanged or a mark left out, the marks are other marks; where the view
+            # found for the marks as clicked leaves marks out (or fits poorly), it is searched again
             again, searched_again, renamed_scorer, _ = _located(scorer, cameras, search_plan, prior, options,
                                                                 adapt=options.robust_marks and not turns)
             if again.score < hypothesis.score:
