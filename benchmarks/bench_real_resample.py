@@ -44,7 +44,7 @@ def remarked(marks: dict[str, list[float]], rng: np.random.Generator, keep: floa
     names = sorted(marks)
     kept = [n for n in names if rng.random() < keep]
     if len(kept) < min(MIN_MARKS, len(names)):
-        kept = sorted(rng.choice(names, size=min(MIN_MARKS, len(names)), replace=False))
+        kept = sorted(str(n) for n in rng.choice(names, size=min(MIN_MARKS, len(names)), replace=False))
     return {n: (float(marks[n][0] + rng.normal(0, noise_px)), float(marks[n][1] + rng.normal(0, noise_px)))
             for n in kept}
 
