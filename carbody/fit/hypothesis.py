@@ -244,12 +244,13 @@ class Scorer:
         return float(solution.evidence_px + (len(kept) - kept.sum()) * self.outlier_nats + prior), prior
 
     def hypothesis(self, view: View, kept: np.ndarray | None = None, cheap: bool = False,
-                   rejections: int | None = None) -> Hypothesis | None:
+                   rejections: int | None = None, check_camera: bool = True) -> Hypothesis | None:
         """The hypothesis ``view`` with the marks it can see (of ``kept``, default all), those
         the others say are misplaced left out (up to ``rejections``; default the policy's most,
         :func:`carbody.fit.robust.leave_out_misplaced`); None when the view cannot see more than
         ``max_rejected_fraction`` of the marks (their names say it is not the photo's), too few
-        remain, or no car fits them there."""
+        remain, or no car fits them there, or (a full solve, ``check_camera``) the real camera
+        does not bear out the solve's (:meth:`camera_holds`). A refinement's start need not."""
         from carbody.fit.robust import leave_out_misplaced, most_rejected
 
         hidden = self.hidden(view)
@@ -267,7 +268,7 @@ class Scorer:
         except (FitError, AngleError):
             return None
         settled = sol.view if sol.view is not None else view
-        if not cheap and not self.camera_holds(settled, kept, sol):
+        if check_camera and not cheap and not self.camera_holds(settled, kept, sol):
             return None
         score, prior = self.score(settled, kept, sol)
         return Hypothesis(settled, self.marks, kept, hidden, sol, score, prior, {})

@@ -258,7 +258,8 @@ def _turned_refit(scorer: Scorer, hypothesis: Hypothesis, plan: CameraPlan, opti
         if search and options.refine:
             camera = View(0.0, 0.0, start.view.roll, start.view.distance, start.view.aim)
             return search_views(turned, [camera], plan.finds_perspective)[0]
-        again = turned.hypothesis(start.view)
+        # (the turned camera's start need not hold: the refinement's own views must)
+        again = turned.hypothesis(start.view, check_camera=False)
         return None if again is None else polish(turned, again)
 
     return refit
