@@ -29,13 +29,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_real_photos import DATA, Photo, car_image_size, load_photos, pct_error, select  # noqa: E402
+from bench_real_photos import (DATA, VIEW_OK_DEG, Photo, car_image_size, fmt, load_photos,  # noqa: E402
+                               median_or_none, pct_error, select)
 
 #: A re-marking keeps at least this many marks (or all the photo has, when fewer).
 MIN_MARKS = 6
 
-#: The summary counts a re-marking's view as the photo's own when within this of it, degrees.
-SAME_VIEW_DEG = 15.0
 
 
 def remarked(marks: dict[str, list[float]], rng: np.random.Generator, keep: float, noise_px: float) -> dict:
@@ -91,29 +90,29 @@ def tasks(photos: list[Photo], draws: int, keep: float, noise_pct: float, seed: 
     return out
 
 
-def angle_off(a: float, b: float) -> float:
-    return abs((a - b + 180.0) % 360.0 - 180.0)
+def within(r: dict, key: str) -> bool:
+    """The row's view lies within ``VIEW_OK_DEG`` of the estimate (``view_off_estimate``) or of
+    the own fit's (``view_off_own``)."""
+    return r[key] is not None and r[key] <= VIEW_OK_DEG
 
 
 def photo_summary(photo: Photo, rows: list[dict]) -> dict:
+    from carbody.view.labels import angular_difference
+
     own = next(r for r in rows if r["draw"] == 0)
     again = [r for r in rows if r["draw"] > 0]
     estimate = photo.meta.get("view_estimate_deg")
     published = photo.meta.get("published_mm") or {}
     bodies = [r for r in again if r["outcome"] == "body"]
     for r in rows:
-        r["view_off_estimate"] = None if r["view_deg"] is None or estimate is None else angle_off(r["view_deg"], estimate)
-        r["view_off_own"] = None if r["view_deg"] is None or own["view_deg"] is None else angle_off(r["view_deg"], own["view_deg"])
+        r["view_off_estimate"] = None if r["view_deg"] is None or estimate is None else float(angular_difference(r["view_deg"], estimate))
+        r["view_off_own"] = None if r["view_deg"] is None or own["view_deg"] is None else float(angular_difference(r["view_deg"], own["view_deg"]))
         r["length_err_pct"] = None if r["length_mm"] is None else pct_error(r["length_mm"], published.get("length"))
         r["wheelbase_err_pct"] = None if r["wheelbase_mm"] is None else pct_error(r["wheelbase_mm"], published.get("wheelbase"))
     return {"photo": photo.name, "own": own, "draws": len(again), "bodies": len(bodies),
-            "within15": sum(r["view_off_estimate"] is not None and r["view_off_estimate"] <= 15 for r in again),
+            "within15": sum(within(r, "view_off_estimate") for r in again),
             "max_off_own": max((r["view_off_own"] for r in bodies if r["view_off_own"] is not None), default=None),
             "others": sorted({r["outcome"] for r in again} - {"body"})}
-
-
-def fmt(v, spec=".0f") -> str:
-    return "" if v is None else format(v, spec)
 
 
 def report(photos: list[Photo], rows: list[dict], args) -> dict:
@@ -133,20 +132,20 @@ def report(photos: list[Photo], rows: list[dict], args) -> dict:
 
     def med(key, rs):
         v = [abs(r[key]) for r in rs if r[key] is not None]
-        return (float(np.median(v)) if v else None), len(v)
+        return median_or_none(v), len(v)
 
     summary = {}
     for label, rs in (("own marks", own), ("re-markings", again)):
         outcomes = {o: sum(r["outcome"] == o for r in rs) for o in ("body", "refused", "error", "traceback")}
-        within = sum(r["view_off_estimate"] is not None and r["view_off_estimate"] <= 15 for r in rs)
-        same = sum(r["view_off_own"] is not None and r["view_off_own"] <= SAME_VIEW_DEG for r in rs)
+        near_estimate = sum(within(r, "view_off_estimate") for r in rs)
+        same = sum(within(r, "view_off_own") for r in rs)
         length, nl = med("length_err_pct", rs)
         wb, nw = med("wheelbase_err_pct", rs)
-        summary[label] = {"runs": len(rs), "outcomes": outcomes, "view_within15": within, "same_view": same,
+        summary[label] = {"runs": len(rs), "outcomes": outcomes, "view_within15": near_estimate, "same_view": same,
                           "median_length_err_pct": length, "length_n": nl, "median_wheelbase_err_pct": wb,
                           "wheelbase_n": nw, "median_seconds": float(np.median([r["seconds"] for r in rs]))}
     print("\n| marks | runs | body / refused / error / traceback | view within 15° of the estimate "
-          f"| view within {SAME_VIEW_DEG:.0f}° of the own fit's | median \\|length\\| % | median \\|wheelbase\\| % "
+          f"| view within {VIEW_OK_DEG:.0f}° of the own fit's | median \\|length\\| % | median \\|wheelbase\\| % "
           "| median s (warm) |")
     print("|---|---|---|---|---|---|---|---|")
     for label, s in summary.items():

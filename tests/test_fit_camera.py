@@ -125,4 +125,3 @@ def test_look_at_homography_turns_the_camera_to_a_point():
 
     Ha, Hb = apply_homography(H, a), apply_homography(H, b)
     assert ray(a) @ ray(b) == pytest.approx(ray(Ha) @ ray(Hb), abs=1e-12)
-

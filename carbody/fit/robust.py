@@ -116,11 +116,18 @@ def twin_name(name: str) -> str:
     return name.removesuffix(RIGHT_SUFFIX) if name.endswith(RIGHT_SUFFIX) else name + RIGHT_SUFFIX
 
 
+def evidence_per_coordinate(hypothesis) -> float | None:
+    """−log evidence per coordinate of the marks a hypothesis keeps (None for the paper's solve,
+    which has no evidence)."""
+    evidence = hypothesis.solution.evidence
+    return None if evidence is None else evidence / (2 * int(hypothesis.kept.sum()))
+
+
 def explains_poorly(hypothesis, policy: FitPolicy) -> bool:
     """The marks a hypothesis keeps are explained poorly: −log evidence per coordinate above
-    ``poor_fit_evidence`` (never for the paper's solve, which has no evidence)."""
-    evidence = hypothesis.solution.evidence
-    return evidence is not None and evidence / (2 * int(hypothesis.kept.sum())) > policy.poor_fit_evidence
+    ``poor_fit_evidence``."""
+    per_coordinate = evidence_per_coordinate(hypothesis)
+    return per_coordinate is not None and per_coordinate > policy.poor_fit_evidence
 
 
 def twin_renames(hypothesis, policy: FitPolicy) -> list[dict[str, str]]:
@@ -199,16 +206,16 @@ def _exchanged(scorer, hypothesis, refine):
 def contradicted(hypothesis, policy: FitPolicy) -> bool:
     """The marks a hypothesis keeps are explained so poorly that the fit would be refused as
     contradicting itself: −log evidence per coordinate above ``refuse_evidence``."""
-    evidence = hypothesis.solution.evidence
-    return evidence is not None and evidence / (2 * int(hypothesis.kept.sum())) > policy.refuse_evidence
+    per_coordinate = evidence_per_coordinate(hypothesis)
+    return per_coordinate is not None and per_coordinate > policy.refuse_evidence
 
 
 def left_out_in_turn(scorer, hypothesis, refine):
     """The hypothesis, or one with one more mark left out, when the marks it keeps would be
     refused as contradicting themselves (:func:`contradicted`): each kept mark left out in turn
     (one solve each at the hypothesis' view, within the policy's most left out), the best
-    refined there; kept when it scores better by ``twin_margin_nats`` (the left-out mark's
-    outlier cost counted). A fit that is merely poor (a car the library lacks) keeps its marks
+    refined there (which can only lower its score); kept when it scores better by
+    ``twin_margin_nats`` (the left-out mark's outlier cost counted). A fit that is merely poor (a car the library lacks) keeps its marks
     and its note: dropping a sound mark would hide what the note says.
 
     The closed-form test (:func:`conditional_costs`) leaves out only a mark whose residual
@@ -235,6 +242,6 @@ def left_out_in_turn(scorer, hypothesis, refine):
     score, _, other, trial = min(trials, key=lambda t: t[:2])
     if not score < hypothesis.score - policy.twin_margin_nats:
         return hypothesis, scorer
-    trial = refine(other, trial) or trial
+    trial = refine(other, trial)
     trial.renamed = hypothesis.renamed
-    return (trial, other) if trial.score < hypothesis.score - policy.twin_margin_nats else (hypothesis, scorer)
+    return trial, other
