@@ -57,6 +57,15 @@ MAX_COMPONENTS = 200
 #: Newton rounds of a pinhole-camera solve (the first linearises at the library's mean car).
 PERSPECTIVE_ITERATIONS = 2
 
+#: Most Newton rounds of a full pinhole solve: more than ``rounds`` only while the camera,
+#: linearised at the shape a round starts from, does not hold at the shape it finds
+#: (:func:`_camera_settled`).
+MAX_PERSPECTIVE_ROUNDS = 6
+
+#: A pinhole solve has settled when its real residual exceeds its linearised one by at most this
+#: share of the marks' spread (rho, the RMS of their centred pixels).
+SETTLED_CAMERA = 0.01
+
 #: Largest perspective factor a solve uses (a point 5× nearer than the aim's distance).
 MAX_PERSPECTIVE_FACTOR = 5.0
 
@@ -543,6 +552,10 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     A pinhole view (``view.distance``) is aimed at the car's centre and solved by Newton rounds:
     linearise the camera and set the aim at the current shape, solve, repeat
     (``rounds``, default ``PERSPECTIVE_ITERATIONS``); the solution's ``view`` carries the final aim.
+    A full solve (``rounds`` ≥ 2) goes on, up to ``MAX_PERSPECTIVE_ROUNDS``, while the camera
+    linearised at a round's start does not hold at the shape it found (:func:`_camera_settled`):
+    its residual and evidence are then the real camera's, not a linear camera's that no car
+    meets. A close camera with a car bent toward it needs this; a far one settles in two.
     """
     from dataclasses import replace
 
@@ -552,14 +565,30 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     mk = model.mean.reshape(-1, 3)[point_indices].ravel()
     Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
     shape = model.mean
-    for _ in range(1 if view.distance is None else rounds):
+    most = 1 if view.distance is None else rounds if rounds < 2 else max(rounds, MAX_PERSPECTIVE_ROUNDS)
+    for round_ in range(most):
         if view.distance is not None:
             view = replace(view, aim=car_centre(shape))
         sol = _solve_gauss_linear(model, mk, Bk, point_indices, slots, uv, view, shape, prior_weight, mixture,
                                   outline, hubs)
         shape = sol.shape
+        if round_ + 1 >= rounds and (view.distance is None or _camera_settled(sol, slots, uv, view, point_indices)):
+            break
     sol.view = view
     return sol
+
+
+def _camera_settled(sol: MixSolution, slots: list[KeypointSlot], uv: np.ndarray, view: View,
+                    point_indices: np.ndarray) -> bool:
+    """Whether a pinhole solve's camera, linearised at the shape it started from, holds at the
+    shape it found: the marks' residuals through the camera linearised there (the real camera
+    at that shape) exceed the solve's by at most ``SETTLED_CAMERA`` of the marks' spread."""
+    kp = sol.shape.reshape(-1, 3)[point_indices]
+    M, const = camera_rows(slots, view, kp)
+    z = np.asarray(uv, dtype=float)
+    _, pred = _image_fit(M, kp, z, sol.scale, const)
+    real = np.linalg.norm(pred - z, axis=1)
+    return float(real.mean() - sol.residual_px.mean()) <= SETTLED_CAMERA * sol.rho
 
 
 def car_centre(shape: np.ndarray) -> tuple[float, float, float]:
