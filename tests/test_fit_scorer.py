@@ -35,6 +35,34 @@ def test_a_solve_the_real_camera_does_not_bear_out_is_no_hypothesis(example_scor
     assert not scorer.camera_holds(found.view, found.kept, bent)
 
 
+def test_a_close_cameras_solve_is_scored_through_the_real_camera(example_scorer, monkeypatch):
+    """The example's view with the camera at 0.3 of its distance: the car must bend toward the
+    camera to meet the marks, and two Newton rounds leave the camera linearised far from the
+    shape found (its real residual near twice the solve's). The full solve takes rounds until the
+    real camera holds, so the residual it reports, and the score built on it, are the real ones."""
+    from dataclasses import replace
+
+    import carbody.fit.solve as solve
+    from carbody.camera import project
+
+    scorer, fit = example_scorer
+    close = replace(fit.view, distance=0.3 * fit.view.distance)
+
+    def residuals(found):
+        sol = found.solution
+        slots = [s for s, k in zip(scorer.marks.slots, found.kept) if k]
+        points = sol.shape.reshape(-1, 3)[[s.point_index for s in slots]] * np.array([s.sign for s in slots])
+        seen = project(points, found.view, sol.scale, sol.offset, max_factor=solve.MAX_PERSPECTIVE_FACTOR)
+        return sol.residual_px.mean(), np.linalg.norm(seen - scorer.marks.uv[found.kept], axis=1).mean()
+
+    said, real = residuals(scorer.hypothesis(close, check_camera=False))
+    assert abs(real - said) <= 0.01 * scorer.marks.spread
+    monkeypatch.setattr(solve, "MAX_PERSPECTIVE_ROUNDS", solve.PERSPECTIVE_ITERATIONS)
+    said_two, real_two = residuals(scorer.hypothesis(close, check_camera=False))
+    assert real_two - said_two > 0.05 * scorer.marks.spread
+    assert real < real_two
+
+
 def test_a_mark_excluded_is_left_out_of_every_hypothesis_at_its_outlier_cost(example_scorer):
     scorer, fit = example_scorer
     found = scorer.hypothesis(fit.view)
