@@ -37,15 +37,21 @@ MIN_MARKS = 6
 
 
 
-def remarked(marks: dict[str, list[float]], rng: np.random.Generator, keep: float, noise_px: float) -> dict:
+def remarked(marks: dict[str, list[float]], rng: np.random.Generator, keep: float, noise_px: float,
+             image_size: tuple[int, int] | None = None) -> dict:
     """A re-marking of ``marks`` (module docstring): each kept with probability ``keep``, at least
-    :data:`MIN_MARKS`, each kept one moved by N(0, noise_px) per coordinate."""
+    :data:`MIN_MARKS`, each kept one moved by N(0, noise_px) per coordinate; given the image's
+    (width, height), a mark moved off it is clicked at its edge."""
     names = sorted(marks)
     kept = [n for n in names if rng.random() < keep]
     if len(kept) < min(MIN_MARKS, len(names)):
         kept = sorted(str(n) for n in rng.choice(names, size=min(MIN_MARKS, len(names)), replace=False))
-    return {n: (float(marks[n][0] + rng.normal(0, noise_px)), float(marks[n][1] + rng.normal(0, noise_px)))
-            for n in kept}
+    moved = {n: (float(marks[n][0] + rng.normal(0, noise_px)), float(marks[n][1] + rng.normal(0, noise_px)))
+             for n in kept}
+    if image_size is None:
+        return moved
+    w, h = image_size
+    return {n: (float(np.clip(u, 0, w - 1)), float(np.clip(v, 0, h - 1))) for n, (u, v) in moved.items()}
 
 
 def _init_worker() -> None:
@@ -86,7 +92,8 @@ def tasks(photos: list[Photo], draws: int, keep: float, noise_pct: float, seed: 
         size, _ = car_image_size(photo)
         out.append((photo, 0, {k: tuple(v) for k, v in marks.items()}))
         rng = np.random.default_rng([seed, i])
-        out += [(photo, d, remarked(marks, rng, keep, noise_pct / 100.0 * size)) for d in range(1, draws + 1)]
+        out += [(photo, d, remarked(marks, rng, keep, noise_pct / 100.0 * size, tuple(photo.meta["image_size"])))
+                for d in range(1, draws + 1)]
     return out
 
 

@@ -34,6 +34,16 @@ def test_a_remarking_keeps_some_marks_moved_by_the_noise(bench):
     assert np.std(moves) == pytest.approx(2.0, rel=0.15)
 
 
+def test_a_mark_moved_off_the_photo_is_clicked_at_its_edge(bench):
+    """A re-marking is a person's clicks: none lies off the image (one did, and the benchmark
+    counted the input error as the fit's)."""
+    edge = {n: [u, 0.5] for n, (u, v) in MARKS.items()}
+    draws = [bench.remarked(edge, np.random.default_rng(i), 1.0, 20.0, (160, 240)) for i in range(10)]
+    points = np.array([p for d in draws for p in d.values()])
+    assert points.min() >= 0 and points[:, 0].max() <= 159 and points[:, 1].max() <= 239
+    assert (points[:, 1] == 0).sum() > len(points) / 3  # about half were moved above the top
+
+
 def test_too_few_kept_are_topped_up_to_six(bench):
     rng = np.random.default_rng(0)
     assert len(bench.remarked(MARKS, rng, 0.01, 0.0)) == bench.MIN_MARKS
