@@ -6,14 +6,15 @@ benchmark asks what another careful annotator would change. Each photo is recons
 wheels) from its own marks, and then from ``--draws`` re-markings of them. A re-marking keeps
 each mark with probability ``--keep`` (at least :data:`MIN_MARKS`), and moves each kept mark
 by Gaussian noise of ``--noise`` % of the car's image size per coordinate (the data's own
-clicks err by 1-1.5 %).
+clicks err by 1-1.5 %). A photo's re-markings are drawn from ``--seed`` and its place among the
+data's photos, so ``--photos NAME`` redraws what the full run drew for it.
 
 Per photo and in summary it prints the outcomes (a body, a one-line refusal, anything else), how
 many views found lie within 15° of the estimate, how far the re-markings' views lie from the
 photo's own fit, and |length| and |wheelbase| errors against the published figures. Fits run
 in a pool of warm processes (one BLAS thread each), so the times are not a fresh process's.
 
-Run: python benchmarks/bench_real_resample.py [--draws 4] [--keep 0.8] [--noise 0.5]
+Run: python benchmarks/bench_real_resample.py [--draws 4] [--keep 0.8] [--noise 0.5] [--seed 0]
      [--workers 2] [--photos N | NAME ...] [--json OUT.json]
 """
 from __future__ import annotations
@@ -85,13 +86,19 @@ def run_one(task: tuple) -> dict:
     return row
 
 
-def tasks(photos: list[Photo], draws: int, keep: float, noise_pct: float, seed: int) -> list[tuple]:
+def tasks(photos: list[Photo], draws: int, keep: float, noise_pct: float, seed: int,
+          order: list[str] | None = None) -> list[tuple]:
+    """(photo, draw, marks) to run: each photo's own marks (draw 0), then its re-markings. Each
+    photo's draws are seeded by ``seed`` and its place in ``order`` (the data's photo names, in
+    the order the full run takes them; default ``photos``), so a run of some photos draws what
+    the full run drew for them."""
+    order = [p.name for p in photos] if order is None else order
     out = []
-    for i, photo in enumerate(photos):
+    for photo in photos:
         marks = photo.meta["keypoints"]
         size, _ = car_image_size(photo)
         out.append((photo, 0, {k: tuple(v) for k, v in marks.items()}))
-        rng = np.random.default_rng([seed, i])
+        rng = np.random.default_rng([seed, order.index(photo.name)])
         out += [(photo, d, remarked(marks, rng, keep, noise_pct / 100.0 * size, tuple(photo.meta["image_size"])))
                 for d in range(1, draws + 1)]
     return out
@@ -185,13 +192,15 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.data / "keypoints").is_dir():
         print(f"skipped: no real photos at {args.data} (the shared folder is not here)")
         return 0
-    photos = select(load_photos(args.data), args.photos)
+    every = load_photos(args.data)
+    photos = select(every, args.photos)
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     load = os.getloadavg()
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=_init_worker) as pool:
-        rows = list(pool.map(run_one, tasks(photos, args.draws, args.keep, args.noise, args.seed)))
+        rows = list(pool.map(run_one, tasks(photos, args.draws, args.keep, args.noise, args.seed,
+                                                  [p.name for p in every])))
     print(f"machine: {os.cpu_count()} cores, load {load[0]:.1f} at the start; {args.workers} workers; "
           f"{time.perf_counter() - start:.0f} s in all")
     summary = report(photos, rows, args)

@@ -44,6 +44,20 @@ def test_a_mark_moved_off_the_photo_is_clicked_at_its_edge(bench):
     assert (points[:, 1] == 0).sum() > len(points) / 3  # about half were moved above the top
 
 
+def test_a_run_of_some_photos_draws_what_the_full_run_drew_for_them(bench):
+    from pathlib import Path
+
+    photos = [bench.Photo(f"p{i}", Path(f"p{i}.jpg"), Path(f"p{i}.json"),
+                          {"keypoints": {n: [u + i, v] for n, (u, v) in MARKS.items()}, "image_size": [640, 480]}, {})
+              for i in range(4)]
+    order = [p.name for p in photos]
+    full = {(p.name, d): marks for p, d, marks in bench.tasks(photos, 3, 0.7, 1.0, 5)}
+    some = bench.tasks(photos[2:3], 3, 0.7, 1.0, 5, order)
+    assert [d for _, d, _ in some] == [0, 1, 2, 3]
+    assert all(marks == full[(p.name, d)] for p, d, marks in some)
+    assert any(marks != full[("p2", d)] for _, d, marks in bench.tasks(photos[2:3], 3, 0.7, 1.0, 5) if d)
+
+
 def test_too_few_kept_are_topped_up_to_six(bench):
     rng = np.random.default_rng(0)
     assert len(bench.remarked(MARKS, rng, 0.01, 0.0)) == bench.MIN_MARKS
