@@ -565,7 +565,12 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     mk = model.mean.reshape(-1, 3)[point_indices].ravel()
     Bk = model.basis.reshape(-1, 3, q)[point_indices].reshape(-1, q)
     shape = model.mean
-    most = 1 if view.distance is None else rounds if rounds < 2 else max(rounds, MAX_PERSPECTIVE_ROUNDS)
+    if view.distance is None:
+        most = 1  # an orthographic camera is linear
+    elif rounds < 2:
+        most = rounds  # the search's cheap solve: the camera linearised at the mean car only
+    else:
+        most = max(rounds, MAX_PERSPECTIVE_ROUNDS)
     for round_ in range(most):
         if view.distance is not None:
             view = replace(view, aim=car_centre(shape))
