@@ -59,12 +59,15 @@ PERSPECTIVE_ITERATIONS = 2
 
 #: Most Newton rounds of a full pinhole solve: more than ``rounds`` only while the camera,
 #: linearised at the shape a round starts from, does not hold at the shape it finds
-#: (:func:`_camera_settled`).
+#: (:func:`_camera_excess`) and each round at least halves the gap.
 MAX_PERSPECTIVE_ROUNDS = 6
 
 #: A pinhole solve has settled when its real residual exceeds its linearised one by at most this
-#: share of the marks' spread (rho, the RMS of their centred pixels).
+#: share of the marks' spread (rho, the RMS of their centred pixels) ...
 SETTLED_CAMERA = 0.01
+
+#: ... or by at most this share of the linearised residual itself (marks that fit badly anyway).
+SETTLED_RESIDUAL = 0.1
 
 #: Largest perspective factor a solve uses (a point 5× nearer than the aim's distance).
 MAX_PERSPECTIVE_FACTOR = 5.0
@@ -553,7 +556,7 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     linearise the camera and set the aim at the current shape, solve, repeat
     (``rounds``, default ``PERSPECTIVE_ITERATIONS``); the solution's ``view`` carries the final aim.
     A full solve (``rounds`` ≥ 2) goes on, up to ``MAX_PERSPECTIVE_ROUNDS``, while the camera
-    linearised at a round's start does not hold at the shape it found (:func:`_camera_settled`):
+    linearised at a round's start does not hold at the shape it found (:func:`_camera_excess`):
     its residual and evidence are then the real camera's, not a linear camera's that no car
     meets. A close camera with a car bent toward it needs this; a far one settles in two.
     """
@@ -571,29 +574,39 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         most = rounds  # the search's cheap solve: the camera linearised at the mean car only
     else:
         most = max(rounds, MAX_PERSPECTIVE_ROUNDS)
+    excess_before = np.inf
     for round_ in range(most):
         if view.distance is not None:
             view = replace(view, aim=car_centre(shape))
         sol = _solve_gauss_linear(model, mk, Bk, point_indices, slots, uv, view, shape, prior_weight, mixture,
                                   outline, hubs)
         shape = sol.shape
-        if round_ + 1 >= rounds and (view.distance is None or _camera_settled(sol, slots, uv, view, point_indices)):
-            break
+        if round_ + 1 >= rounds:
+            if view.distance is None:
+                break
+            excess = _camera_excess(sol, slots, uv, view, point_indices)
+            # settled (the gap is small beside the marks' spread or beside the residual itself),
+            # or the rounds no longer halve it (marks no car meets there: more rounds would not
+            # settle it, and the search's camera check judges the solve)
+            settled = max(SETTLED_CAMERA, SETTLED_RESIDUAL * float(sol.residual_px.mean()) / sol.rho)
+            if excess <= settled or excess > 0.5 * excess_before:
+                break
+            excess_before = excess
     sol.view = view
     return sol
 
 
-def _camera_settled(sol: MixSolution, slots: list[KeypointSlot], uv: np.ndarray, view: View,
-                    point_indices: np.ndarray) -> bool:
-    """Whether a pinhole solve's camera, linearised at the shape it started from, holds at the
-    shape it found: the marks' residuals through the camera linearised there (the real camera
-    at that shape) exceed the solve's by at most ``SETTLED_CAMERA`` of the marks' spread."""
+def _camera_excess(sol: MixSolution, slots: list[KeypointSlot], uv: np.ndarray, view: View,
+                   point_indices: np.ndarray) -> float:
+    """How far a pinhole solve's camera, linearised at the shape it started from, misses the
+    real one at the shape it found: the marks' mean residual through the camera linearised there
+    (the real camera at that shape) less the solve's, as a share of the marks' spread (rho)."""
     kp = sol.shape.reshape(-1, 3)[point_indices]
     M, const = camera_rows(slots, view, kp)
     z = np.asarray(uv, dtype=float)
     _, pred = _image_fit(M, kp, z, sol.scale, const)
     real = np.linalg.norm(pred - z, axis=1)
-    return float(real.mean() - sol.residual_px.mean()) <= SETTLED_CAMERA * sol.rho
+    return float(real.mean() - sol.residual_px.mean()) / sol.rho
 
 
 def car_centre(shape: np.ndarray) -> tuple[float, float, float]:
