@@ -22,12 +22,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from carbody.camera import View, project
+from carbody.camera import View
 from carbody.errors import AngleError, FitError
 from carbody.fit.keypoints_io import KeypointSlot, keypoint_slots
 from carbody.fit.options import FitOptions
 from carbody.fit.shape_prior import implausibility, library_mean, prepared
-from carbody.fit.solve import MixSolution, keypoint_spread, solve_gauss, solve_simplex
+from carbody.fit.solve import MixSolution, camera_excess_px, keypoint_spread, solve_gauss, solve_simplex
 from carbody.fit.view_prior import ViewPrior
 from carbody.fit.visibility import FacingTable
 from carbody.library import Library
@@ -228,14 +228,9 @@ class Scorer:
         camera; its score then describes no car, and such a view could win the search."""
         if view.distance is None or solution.shape is None:
             return True
-        from carbody.fit.solve import MAX_PERSPECTIVE_FACTOR
-
         slots = [s for s, k in zip(self.marks.slots, kept) if k]
-        points = solution.shape.reshape(-1, 3)[[s.point_index for s in slots]] * np.array([s.sign for s in slots])
-        uv = self.marks.uv[kept]
-        seen = np.linalg.norm(project(points, view, solution.scale, solution.offset,
-                                      max_factor=MAX_PERSPECTIVE_FACTOR) - uv, axis=1)
-        excess = float(seen.mean() - np.mean(solution.residual_px))
+        excess = camera_excess_px(solution, slots, self.marks.uv[kept], view,
+                                  load_topology().keypoint_point_indices)
         return excess <= self.policy.linearised_camera_spread * self.marks.spread
 
     def score(self, view: View, kept: np.ndarray, solution: MixSolution) -> tuple[float, float]:

@@ -215,8 +215,9 @@ def left_out_in_turn(scorer, hypothesis, refine):
     refused as contradicting themselves (:func:`contradicted`): each kept mark left out in turn
     (one solve each at the hypothesis' view, within the policy's most left out), the best
     refined there (which can only lower its score); kept when it scores better by
-    ``twin_margin_nats`` (the left-out mark's outlier cost counted). A fit that is merely poor (a car the library lacks) keeps its marks
-    and its note: dropping a sound mark would hide what the note says.
+    ``twin_margin_nats`` (the left-out mark's outlier cost counted). A fit that is merely poor
+    (a car the library lacks) keeps its marks and its note: dropping a sound mark would hide
+    what the note says.
 
     The closed-form test (:func:`conditional_costs`) leaves out only a mark whose residual
     stands out. A car can instead bend to follow a stray click where the view cannot see the

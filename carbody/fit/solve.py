@@ -59,7 +59,7 @@ PERSPECTIVE_ITERATIONS = 2
 
 #: Most Newton rounds of a full pinhole solve: more than ``rounds`` only while the camera,
 #: linearised at the shape a round starts from, does not hold at the shape it finds
-#: (:func:`_camera_excess`) and each round at least halves the gap.
+#: (:func:`camera_excess_px`) and each round at least halves the gap.
 MAX_PERSPECTIVE_ROUNDS = 6
 
 #: A pinhole solve has settled when its real residual exceeds its linearised one by at most this
@@ -556,7 +556,7 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     linearise the camera and set the aim at the current shape, solve, repeat
     (``rounds``, default ``PERSPECTIVE_ITERATIONS``); the solution's ``view`` carries the final aim.
     A full solve (``rounds`` ≥ 2) goes on, up to ``MAX_PERSPECTIVE_ROUNDS``, while the camera
-    linearised at a round's start does not hold at the shape it found (:func:`_camera_excess`):
+    linearised at a round's start does not hold at the shape it found (:func:`camera_excess_px`):
     its residual and evidence are then the real camera's, not a linear camera's that no car
     meets. A close camera with a car bent toward it needs this; a far one settles in two.
     """
@@ -584,7 +584,7 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
         if round_ + 1 >= rounds:
             if view.distance is None:
                 break
-            excess = _camera_excess(sol, slots, uv, view, point_indices)
+            excess = camera_excess_px(sol, slots, uv, view, point_indices) / sol.rho
             # settled (the gap is small beside the marks' spread or beside the residual itself),
             # or the rounds no longer halve it (marks no car meets there: more rounds would not
             # settle it, and the search's camera check judges the solve)
@@ -596,17 +596,17 @@ def solve_gauss(model: ShapeModel, point_indices: np.ndarray, slots: list[Keypoi
     return sol
 
 
-def _camera_excess(sol: MixSolution, slots: list[KeypointSlot], uv: np.ndarray, view: View,
-                   point_indices: np.ndarray) -> float:
+def camera_excess_px(sol: MixSolution, slots: list[KeypointSlot], uv: np.ndarray, view: View,
+                     point_indices: np.ndarray) -> float:
     """How far a pinhole solve's camera, linearised at the shape it started from, misses the
-    real one at the shape it found: the marks' mean residual through the camera linearised there
-    (the real camera at that shape) less the solve's, as a share of the marks' spread (rho)."""
+    real one at the shape it found, px: the marks' mean residual through the camera linearised
+    there (exactly the real camera at that shape) less the solve's."""
     kp = sol.shape.reshape(-1, 3)[point_indices]
     M, const = camera_rows(slots, view, kp)
     z = np.asarray(uv, dtype=float)
     _, pred = _image_fit(M, kp, z, sol.scale, const)
     real = np.linalg.norm(pred - z, axis=1)
-    return float(real.mean() - sol.residual_px.mean()) / sol.rho
+    return float(real.mean() - sol.residual_px.mean())
 
 
 def car_centre(shape: np.ndarray) -> tuple[float, float, float]:
