@@ -6,6 +6,8 @@ is garbage is refused by the quality check, and the fit then is the marks' alone
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -119,3 +121,28 @@ def test_a_refused_outline_leaves_the_fit_to_the_marks(roofless):
     refused = fit_wireframe(marks, VIEW, library, image_size=SIZE, options=options, photo=garbage)
     assert not refused.outline.used and refused.outline.reason == reason
     assert np.array_equal(refused.wireframe.control_points, alone.wireframe.control_points)
+
+
+def test_a_car_at_or_behind_a_close_camera_is_told_apart_from_one_before_it(library):
+    from carbody.fit.solve import reaches_camera
+
+    car = library.points(library.original(TRUTH)).reshape(-1, 3)
+    far, close = View(30.0, 5.0, distance=5000.0), View(30.0, 5.0, distance=300.0)
+    assert not reaches_camera(car, far) and reaches_camera(car, close)
+    assert not reaches_camera(car, View(30.0, 5.0))  # orthographic: no camera in the scene
+
+
+REAL = Path(__file__).resolve().parents[2] / "shared" / "realphotos"
+
+
+@pytest.mark.skipif(not (REAL / "images" / "cps_te85.jpg").exists(), reason=f"no real photos at {REAL}")
+def test_an_outline_that_would_pull_the_car_through_a_close_camera_is_not_followed():
+    """The cab-over truck seen from 3 m, marked on its front only: its outline's solve bent the
+    car through the camera, and ``reconstruct --outline`` refused the photo ("camera inside the
+    car"). The fit now keeps the marks' car and says why."""
+    from carbody.pipeline import reconstruct
+
+    done = reconstruct(REAL / "images" / "cps_te85.jpg", REAL / "keypoints" / "cps_te85.json", outline=True)
+    assert done.fit.view.distance is not None
+    assert not done.fit.outline.used and "through the camera" in done.fit.outline.reason
+    assert done.body_cadquery().isValid()

@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from carbody.camera import View, apply_homography, project
+from carbody.fit.solve import reaches_camera
 from carbody.policy import FitPolicy
 from carbody.wireframe import MIRROR, POINTS_PER_CURVE
 
@@ -301,7 +302,7 @@ def follow_outline(scorer, hypothesis, outline: CarOutline, to_photo: np.ndarray
     if not outline.usable:
         return hypothesis, OutlineFit(False, outline.reason, hull_ratio=outline.hull_ratio, seconds=outline.seconds)
     spread = hypothesis.marks.spread
-    h, before, matched = hypothesis, None, None
+    h, before, matched, through = hypothesis, None, None, False
     for _ in range(policy.outline_passes):
         sol = h.solution
         matched = outline_targets(sol.shape, sol.view or h.view, sol.scale, sol.offset, outline, spread, policy,
@@ -311,12 +312,16 @@ def follow_outline(scorer, hypothesis, outline: CarOutline, to_photo: np.ndarray
         if len(matched) < policy.outline_min_points:
             break
         new = scorer.solve(h.view, h.kept, outline=matched, hubs=hubs)
+        through = reaches_camera(new.shape, new.view or h.view)
+        if through:
+            break  # an outline that would pull the car through a close camera is not followed
         new.evidence, new.evidence_px = sol.evidence, sol.evidence_px  # the marks' own: the view's score
         h = replace(h, solution=new, view=new.view or h.view)
     if h is hypothesis:
-        return hypothesis, OutlineFit(False, f"{len(matched)} outline points matched (fewest used: "
-                                             f"{policy.outline_min_points})", len(matched), before,
-                                      hull_ratio=outline.hull_ratio, seconds=outline.seconds)
+        reason = "the outline would pull the car through the camera" if through else \
+            f"{len(matched)} outline points matched (fewest used: {policy.outline_min_points})"
+        return hypothesis, OutlineFit(False, reason, len(matched), before, hull_ratio=outline.hull_ratio,
+                                      seconds=outline.seconds)
     sol = h.solution
     after = outline_targets(sol.shape, sol.view or h.view, sol.scale, sol.offset, outline, spread, policy, to_photo)
     return h, OutlineFit(True, "", len(matched), before, _median_px(after, sol.shape, sol.view or h.view, sol.scale,

@@ -28,7 +28,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from carbody.camera import MAX_ABS_ROLL_DEG, View, check_azimuth, perspective_factors, read_view
+from carbody.camera import MAX_ABS_ROLL_DEG, View, check_azimuth, read_view
 from carbody.errors import AngleError, FitError
 from carbody.fit.diagnostics import diagnose
 from carbody.fit.fit_camera import CameraPlan, Turn, mix_wheelbase_mm, size_from_told_distance, turn_toward_car
@@ -40,13 +40,13 @@ from carbody.fit.robust import explains_poorly, left_out_in_turn, marks_noise, t
 from carbody.fit.search import distinct, refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.size import SizeEstimate, estimate_size
-from carbody.fit.solve import joint_keypoint_covariance
+from carbody.fit.solve import joint_keypoint_covariance, reaches_camera
 from carbody.fit.view_prior import ViewPrior
 from carbody.library import Library, check_library
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
 from carbody.view.labels import angular_difference
-from carbody.wireframe import MIRROR, Wireframe
+from carbody.wireframe import Wireframe
 
 
 def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float | str | ViewPrior | None = None,
@@ -331,11 +331,8 @@ def _deformed(result: FitResult) -> FitResult:
     after = prepared_field(result.library).fit_to_keypoints(before, idx, result.slots, result.marks_in_fit_camera(),
                                                             result.view, sol.scale, sol.offset)
     result.solve_residual_px = np.array(sol.residual_px, dtype=float)
-    if result.view.distance is not None:
-        try:
-            perspective_factors(np.concatenate([after.reshape(-1, 3), after.reshape(-1, 3) * MIRROR]), result.view)
-        except AngleError:  # marks that would pull part of the car through the camera: not followed
-            return result
+    if reaches_camera(after, result.view):  # marks that would pull part of the car through the camera
+        return result  # (not followed)
     undeformed = result.wireframe
     result.wireframe = Wireframe(undeformed.name, after.reshape(-1, 3) * result.mm_per_unit)
     residual = np.linalg.norm(result.reprojected() - result.uv, axis=1)

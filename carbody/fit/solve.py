@@ -609,6 +609,26 @@ def camera_excess_px(sol: MixSolution, slots: list[KeypointSlot], uv: np.ndarray
     return float(real.mean() - sol.residual_px.mean())
 
 
+def reaches_camera(shape: np.ndarray, view: View) -> bool:
+    """Whether part of a car (``shape``: its left half, (840,) or (280, 3); the mirror is checked
+    too) lies at or behind a pinhole ``view``'s camera. A solve's perspective is clamped
+    (:data:`MAX_PERSPECTIVE_FACTOR`), so a solve can pull a car through a close camera when
+    what it follows contradicts itself there; such a car cannot be drawn. False for an
+    orthographic view."""
+    from carbody.camera import perspective_factors
+    from carbody.errors import AngleError
+    from carbody.wireframe import MIRROR
+
+    if view.distance is None:
+        return False
+    points = np.asarray(shape, dtype=float).reshape(-1, 3)
+    try:
+        perspective_factors(np.concatenate([points, points * MIRROR]), view)
+    except AngleError:
+        return True
+    return False
+
+
 def car_centre(shape: np.ndarray) -> tuple[float, float, float]:
     """The centre of a car's bounding box (both halves: x = 0), the point a photo is aimed at."""
     points = np.asarray(shape).reshape(-1, 3)

@@ -50,7 +50,7 @@ import numpy as np
 
 from carbody.camera import View, apply_homography, camera_direction, perspective_factors, project
 from carbody.errors import AngleError
-from carbody.fit.solve import MAX_PERSPECTIVE_FACTOR
+from carbody.fit.solve import MAX_PERSPECTIVE_FACTOR, reaches_camera
 from carbody.policy import FitPolicy
 from carbody.wireframe import POINTS_PER_CURVE
 
@@ -610,6 +610,9 @@ def follow_wheels(scorer, hypothesis, image: np.ndarray, to_photo: np.ndarray | 
         found.update({f.wheel: f for f in again})
         wheels = [found[w] for w in WHEELS if w in found]
         h, hubs, weight, picked, targets = _with_hubs(scorer, hypothesis, wheels, to_photo, sigma)
+        if reaches_camera(h.solution.shape, h.view):  # hubs found wrong round a close camera: not followed
+            reason = "the hubs found would pull the car through the camera"
+            return hypothesis, WheelsFit(False, reason, [], seconds=time.perf_counter() - start), None
     seconds = time.perf_counter() - start
     if hubs is None:
         return hypothesis, WheelsFit(False, "no wheel found in the photo", [], seconds=seconds), None
