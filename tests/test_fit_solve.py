@@ -10,7 +10,7 @@ from carbody.fit.keypoints_io import keypoint_slots
 from carbody.fit.solve import KeypointBasis, nnls_active_set, solve_simplex
 from carbody.fit.visibility import visible_slots
 from carbody.policy import FIT_POLICY
-from tests.conftest import off_centre_photo
+from tests.conftest import REPO, off_centre_photo
 
 
 def _observe(truth, view, scale=0.4, offset=(520.0, 310.0), noise=0.0, seed=0):
@@ -170,6 +170,26 @@ def test_a_focal_length_that_puts_the_camera_in_the_car_is_dropped(library):
                         principal_point="centre")
     assert res.focal_px == pytest.approx(900.0, rel=0.2) and abs(res.view.azimuth - 180) < 5
     assert np.mean(list(res.residuals_px().values())) < 3
+
+
+REAL_PHOTOS = REPO.parent / "shared" / "realphotos"
+
+
+@pytest.mark.skipif(not (REAL_PHOTOS / "keypoints" / "cps_te47.json").exists(),
+                    reason=f"no real photos at {REAL_PHOTOS}")
+def test_turns_that_diverge_leave_the_camera_looking_at_the_car(library):
+    """A real photo (a Camry from the front, six marks) told a phone's focal length (26 mm) it
+    was not taken with: each turn toward the car aimed further off it, until the camera looked
+    80° away and no car fitted the marks. The passes now stop where they would diverge, and the
+    fit is the unturned one's, saying so."""
+    meta = json.loads((REAL_PHOTOS / "keypoints" / "cps_te47.json").read_text())
+    w, h = meta["image_size"]
+    phone_px = 26.0 * np.hypot(w, h) / np.hypot(36, 24)  # 26 mm, 35 mm-equivalent
+    res = fit_wireframe({k: tuple(v) for k, v in meta["keypoints"].items()}, None, library, image_size=(w, h),
+                        camera_distance_mm="auto", principal_point="centre", focal_px=phone_px)
+    assert res.camera_turn_diverged and res.to_photo is None and res.camera_turn_deg == 0.0
+    assert not res.diagnostics.contradicts and res.solution.residual_px.mean() < 10
+    assert abs((res.view.azimuth - meta["view_estimate_deg"] + 180) % 360 - 180) < 15
 
 
 def test_misplaced_or_swapped_marks_are_named(library):

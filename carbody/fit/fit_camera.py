@@ -16,7 +16,7 @@ the fit (:class:`CameraPlan`) decides the cameras the view search starts from
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -146,12 +146,15 @@ class Turn:
         hypothesis: the fit, in the turned camera's pixels.
         to_photo: (3, 3) homography from those pixels to the photo's, or None (no turn).
         focal_px: the focal length the turn used; turn_deg: how far it swung the camera.
+        diverged: the turns toward the car moved the camera further each pass, so it was not
+            turned (:func:`_looking_at_car`).
     """
 
     hypothesis: Hypothesis
     to_photo: np.ndarray | None = None
     focal_px: float | None = None
     turn_deg: float = 0.0
+    diverged: bool = False
 
     def aim_in_photo(self) -> np.ndarray:
         """(2,) photo pixels of the car's centre (the pinhole's aim)."""
@@ -187,8 +190,13 @@ def _looking_at_car(turn: Turn, focal_px: float | None, photo_uv: np.ndarray, pr
     """Refit with the camera turned about its centre to look at the car's centre, each pass from
     the last one's aim, until the direction to the car moves less than ``turn_tolerance_deg``.
     ``focal_px`` None: the fit's own, f = s·D. ``search``: the first refit searches the view
-    afresh (an oblique image plane can have pulled the unturned fit's view degrees off)."""
-    looking = np.array([0.0, 0.0, 1.0])
+    afresh (an oblique image plane can have pulled the unturned fit's view degrees off).
+
+    Each pass should move the camera less than the one before. When a pass would move it more,
+    the passes diverge (a focal length the photo's camera did not have: a cropped or zoomed
+    photo told a phone's, each fit aiming further off the car): the fit is not turned at all
+    (``turn`` is returned, marked :attr:`Turn.diverged`)."""
+    start, looking, moved = turn, np.array([0.0, 0.0, 1.0]), np.inf
     least = policy.min_focal_diagonal * 2.0 * float(np.hypot(*principal))
     for _ in range(passes or policy.turn_passes):
         sol, view = turn.hypothesis.solution, turn.hypothesis.view
@@ -198,8 +206,11 @@ def _looking_at_car(turn: Turn, focal_px: float | None, photo_uv: np.ndarray, pr
         aim_px = turn.aim_in_photo()
         to_car = np.append((aim_px - principal) / focal, 1.0)
         to_car /= np.linalg.norm(to_car)
-        if np.degrees(np.arccos(min(1.0, float(to_car @ looking)))) < policy.turn_tolerance_deg:
+        step = float(np.degrees(np.arccos(min(1.0, float(to_car @ looking)))))
+        if step < policy.turn_tolerance_deg:
             break  # the camera already looks at the car
+        if step > moved:
+            return replace(start, diverged=True)
         to_turned = look_at_homography(aim_px, principal, focal)
         try:
             turned = refit(apply_homography(to_turned, photo_uv), turn.hypothesis, search)
@@ -207,7 +218,7 @@ def _looking_at_car(turn: Turn, focal_px: float | None, photo_uv: np.ndarray, pr
             break  # this turn's best camera sits in the car (a wild focal length): keep the last fit
         if turned is None:
             break
-        looking, search = to_car, False
+        looking, search, moved = to_car, False, step
         turn = Turn(turned, np.linalg.inv(to_turned), float(focal), float(np.degrees(np.arccos(to_car[2]))))
     return turn
 

@@ -59,6 +59,7 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
         # a car off an uncropped photo's centre: the camera turned to it (scale and offset
         # above are then the turned camera's)
         "camera_turn_deg": result.camera_turn_deg,
+        "camera_turn_diverged": result.camera_turn_diverged,
         "focal_length_px": result.focal_px,
         "image_offset_px": [float(v) for v in result.solution.offset],
         # everything needed to project car-frame points (mm) into the photo again
@@ -172,8 +173,8 @@ def project_with_camera(camera: dict, points_mm: np.ndarray) -> np.ndarray:
 def fit_notes(report: dict) -> list[str]:
     """The lines a person reads after a fit, from its report (:func:`build_report`): the fit's
     own expected error, then notes on marks left out or renamed, marks no car fits, a photo
-    taken from close by, marks the fitted car passes far
-    from, and marks the fitted geometry hides. ``carbody fit`` prints them; ``carbody
+    taken from close by, a camera not turned to an off-centre car, marks the fitted car passes
+    far from, and marks the fitted geometry hides. ``carbody fit`` prints them; ``carbody
     reconstruct``'s summary carries them."""
     lines = []
     if "expected_error_mm" in report:
@@ -187,6 +188,10 @@ def fit_notes(report: dict) -> list[str]:
                      "the wireframe is not to be trusted; check the marks' names and places, and the view given")
     if (report["orthographic_check"] or {}).get("closer_camera"):
         notes.append(closer_camera_line(report["orthographic_check"]))
+    if report.get("camera_turn_diverged"):
+        notes.append("the camera was not turned to the car off the photo's centre: each turn aimed further off "
+                     "it, as with a focal length the photo's camera did not have (a cropped, resized or zoomed "
+                     "photo); fitted as if the camera looked at the car")
     if report["suspect_keypoints"]:
         notes.append("the fitted car passes far from " + ", ".join(
             f"{n} ({report['residual_px'][n]:.0f} px)" for n in report["suspect_keypoints"])

@@ -42,6 +42,8 @@ class FitResult:
         focal_px: the focal length that turn used, pixels (the known one, or the fit's).
         camera_turn_deg: how far that turn swung the camera from the photo's optical axis to
             the car's centre, degrees (0: no turn).
+        camera_turn_diverged: the turns toward the car moved the camera further each pass (a
+            focal length the photo's camera did not have), so it was not turned.
         wheelbase_from: where ``wheelbase_mm`` came from: ``"told"``, ``"camera distance"``
             (a told distance against the perspective's), ``"proportions"`` (the fitted car's
             proportions read against published cars: ``size``) or ``"library mix"`` (the
@@ -74,6 +76,7 @@ class FitResult:
     to_photo: np.ndarray | None = None
     focal_px: float | None = None
     camera_turn_deg: float = 0.0
+    camera_turn_diverged: bool = False
     wheelbase_from: str = "library mix"
     size: SizeEstimate | None = None
     wheelbase_by_mix_mm: float | None = None

@@ -316,7 +316,8 @@ def _result(turn: Turn, photo_uv: np.ndarray, prior: ViewPrior, library: Library
                        given_view=None if prior.azimuth_deg is None else prior.start, solution=sol,
                        slots=h.kept_slots, uv=photo_uv[h.kept], wheelbase_mm=float(wheelbase_mm),
                        method=options.method, library=library, to_photo=turn.to_photo,
-                       focal_px=turn.focal_px, camera_turn_deg=turn.turn_deg, wheelbase_from=wheelbase_from,
+                       focal_px=turn.focal_px, camera_turn_deg=turn.turn_deg, camera_turn_diverged=turn.diverged,
+                       wheelbase_from=wheelbase_from,
                        joint_field=options.joint_field and options.method != "paper")
     if turn.to_photo is not None:  # residuals in the photo's own pixels
         sol.residual_px = np.linalg.norm(result.reprojected() - result.uv, axis=1)
