@@ -6,9 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from tests.conftest import REPO, run_cli
-
-REAL_PHOTOS = REPO.parent / "shared" / "realphotos"
+from tests.conftest import run_cli
 
 
 @pytest.fixture(scope="module")
@@ -264,21 +262,6 @@ def test_a_close_photo_fitted_as_orthographic_says_so(tmp_path):
     check = rep["orthographic_check"]
     assert check["closer_camera"] and check["camera_distance_mm"] == pytest.approx(7000, rel=0.15)
     assert "looks taken from close by" in proc.stdout and "--distance auto" in proc.stdout
-
-
-@pytest.mark.skipif(not (REAL_PHOTOS / "keypoints" / "cps_te31.json").exists(), reason="no real photos")
-def test_a_close_photo_refused_as_orthographic_names_the_camera_not_the_marks(tmp_path):
-    """A real photo taken from about 3 m straight ahead (cps_te31), told ``--distance
-    orthographic``: no distant camera fits its marks, and the one line says so and what to do,
-    instead of blaming the marks (which fit a close camera)."""
-    proc = run_cli("fit", str(REAL_PHOTOS / "images" / "cps_te31.jpg"), "--keypoints",
-                   str(REAL_PHOTOS / "keypoints" / "cps_te31.json"), "--distance", "orthographic",
-                   "-o", str(tmp_path / "car.step"), "--report", str(tmp_path / "r.json"))
-    line = proc.stderr.strip()
-    assert proc.returncode == 2 and len(line.splitlines()) == 1 and not (tmp_path / "car.step").exists()
-    assert "no distant camera fits the marks" in line and "--distance auto" in line
-    assert "contradict each other" not in line
-    assert json.loads((tmp_path / "r.json").read_text())["orthographic_check"]["closer_camera"]
 
 
 def test_any_view_given_lands_on_the_photo_s_and_marks_no_view_fits_are_said_to_fit_poorly(tmp_path):
