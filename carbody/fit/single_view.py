@@ -99,7 +99,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(1):  # small dense algebra: more threads only oversubscribe the cores
-        scorer = Scorer(library, Marks(tuple(slots), uv), options, wheelbase_mm, prior, image_size)
+        scorer = clicked = Scorer(library, Marks(tuple(slots), uv), options, wheelbase_mm, prior, image_size)
         cameras = search_plan.scan_cameras(library, wheelbase_mm, options.policy)
         cameras = [replace(c, roll=prior.roll_deg) for c in cameras]
         # (an off-centre car's obliquity reads as noise until the camera is turned to it)
@@ -162,7 +162,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             from carbody.fit.shape_prior import library_mean
             from carbody.fit.solve import car_centre
 
-            closer = closer_camera(scorer, turn.hypothesis, car_centre(library_mean(library)))
+            # (the marks as clicked: names exchanged to fit a distant camera need not fit a close one)
+            closer = closer_camera(scorer.with_marks(clicked.marks), turn.hypothesis, car_centre(library_mean(library)))
         result.diagnostics = diagnose(result, scorer, turn.hypothesis, options.policy, searched, closer, photo_uv)
     return result
 
