@@ -19,15 +19,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
-import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_real_photos import DATA, REPO, Photo, load_photos, select  # noqa: E402
+from bench_real_photos import DATA, REPO, Photo, load_photos, outcome_of, run_photo, select  # noqa: E402
 
 OUT = REPO / "out" / "bench_real_options"
 
@@ -56,22 +53,17 @@ def variants(photo: Photo) -> dict[str, list[str]]:
 
 
 def run(photo: Photo, name: str, extra: list[str], out: Path) -> dict:
-    """One ``carbody reconstruct`` (one BLAS thread): outcome, its line, the view found, seconds."""
-    folder = out / f"{photo.name}.{name.replace(' ', '_')}"
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    start = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "carbody", "reconstruct", str(photo.image), "-k",
-                           str(photo.marks), *extra, "-o", str(folder), "-q"],
-                          capture_output=True, text=True, env=env, cwd=REPO, timeout=900)
-    seconds = time.perf_counter() - start
-    lines = proc.stderr.strip().splitlines()
-    outcome = ("body" if proc.returncode == 0 else "refused" if proc.returncode == 2 and len(lines) == 1
-               and "Traceback" not in proc.stderr else "error")
+    """One ``carbody reconstruct`` in a fresh process, one BLAS thread (:func:`run_photo`, into
+    ``out/<variant>/<photo>``): outcome (:func:`outcome_of`), its line, the view found, seconds."""
+    folder = out / name.replace(" ", "_")
+    folder.mkdir(parents=True, exist_ok=True)
+    done = run_photo(photo, folder, blas_threads=1, extra=tuple(extra))
+    outcome, line = outcome_of(done, folder / photo.name)
     view = None
     if outcome == "body":
-        view = float(json.loads((folder / "report.json").read_text())["view"]["azimuth_deg"])
-    return {"photo": photo.name, "variant": name, "args": extra, "outcome": outcome, "exit_code": proc.returncode,
-            "line": lines[-1] if lines and outcome != "body" else None, "view_deg": view, "seconds": seconds}
+        view = float(json.loads((folder / photo.name / "report.json").read_text())["view"]["azimuth_deg"])
+    return {"photo": photo.name, "variant": name, "args": extra, "outcome": outcome, "exit_code": done["exit_code"],
+            "line": line, "view_deg": view, "seconds": done["seconds"]}
 
 
 def summarise(rows: list[dict]) -> list[dict]:

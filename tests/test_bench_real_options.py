@@ -20,7 +20,8 @@ def test_each_photo_gets_the_options_its_data_allows():
     from bench_real_photos import Photo
 
     bare = Photo("p", REPO / "p.jpg", REPO / "p.json", {}, {})
-    told = Photo("p", REPO / "p.jpg", REPO / "p.json", {"view_estimate_deg": 350, "published_mm": {"wheelbase": 2700}}, {})
+    told = Photo("p", REPO / "p.jpg", REPO / "p.json",
+                 {"view_estimate_deg": 350, "published_mm": {"wheelbase": 2700}}, {})
     assert "view" not in variants(bare) and "wheelbase" not in variants(bare) and variants(bare)["none"] == []
     assert variants(told)["other end"] == ["--view", "170"] and variants(told)["wheelbase"] == ["--wheelbase", "2700"]
 

@@ -6,8 +6,6 @@ is garbage is refused by the quality check, and the fit then is the marks' alone
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -18,6 +16,7 @@ from carbody.fit.visibility import visible_slots
 from carbody.policy import FIT_POLICY
 from carbody.topology import load_topology
 from carbody.wireframe import MIRROR, sample_curves
+from tests.conftest import REPO
 
 #: The marks a person leaves out here: every one on the roof and the glass's upper edge.
 ROOF = ("roof_front_centre", "roof_rear_centre", "roof_front_corner", "roof_rear_corner", "window_front_top",
@@ -132,7 +131,7 @@ def test_a_car_at_or_behind_a_close_camera_is_told_apart_from_one_before_it(libr
     assert not reaches_camera(car, View(30.0, 5.0))  # orthographic: no camera in the scene
 
 
-REAL = Path(__file__).resolve().parents[2] / "shared" / "realphotos"
+REAL = REPO.parent / "shared" / "realphotos"
 
 
 @pytest.mark.skipif(not (REAL / "images" / "cps_te85.jpg").exists(), reason=f"no real photos at {REAL}")

@@ -243,7 +243,8 @@ def marks_notes(rejected_px: dict[str, float], looks_like: dict[str, str], renam
 
 def refusal_line(result) -> str | None:
     """One line saying why a fit is not to be given out, naming the marks the car passes
-    furthest from, or the camera told when a close one fits them (``closer_camera``); None unless the marks contradict each other (``contradicts`` of
+    furthest from, or, told a distant camera, the close one that fits them (``closer_camera``);
+    None unless the marks contradict each other (``contradicts`` of
     :class:`~carbody.fit.diagnostics.FitDiagnostics`: a fit that merely fits poorly, a car the
     library lacks, is given out with a note)."""
     from carbody.fit.solve import keypoint_spread
@@ -251,16 +252,15 @@ def refusal_line(result) -> str | None:
     diagnostics = result.diagnostics
     if diagnostics is None or not diagnostics.contradicts:
         return None
+    evidence = diagnostics.evidence_per_coordinate
+    if diagnostics.camera_closer:  # told a distant camera, the marks show one close by
+        return (f"no distant camera fits the marks (−log evidence {evidence:.0f} per coordinate, where a photo's "
+                f"own marks stay under 10): the photo looks taken from close by, a camera "
+                f"{diagnostics.closer_camera['camera_distance_mm'] / 1000:.1f} m from the car fits them: "
+                "--distance auto finds it (--force gives the car anyway)")
     residual = result.residuals_px()
     mean = float(np.mean(list(residual.values())))
     worst = sorted(residual, key=lambda n: -residual[n])[:3]
-    evidence = diagnostics.evidence_per_coordinate
-    if diagnostics.camera_closer:  # told a distant camera, the marks show one close by
-        closer = diagnostics.closer_camera
-        return (f"no distant camera fits the marks (−log evidence {evidence:.0f} per coordinate, where a photo's "
-                f"own marks stay under 10): the photo looks taken from close by, a camera "
-                f"{closer['camera_distance_mm'] / 1000:.1f} m from the car fits them: --distance auto finds it "
-                "(--force gives the car anyway)")
     why = (f"the marks contradict each other: no car fits them (−log evidence {evidence:.0f} per coordinate, "
            f"where a photo's own marks stay under 10)" if diagnostics.fits_poorly
            else f"the fitted car misses the marks by {mean:.0f} px on average "
