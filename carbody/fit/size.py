@@ -6,18 +6,14 @@ for its wheelbase, a saloon or a pickup long and low. So the fitted car's length
 height *in wheelbases* say how long its wheelbase is likely to be.
 
 The table of published dimensions (``carbody/data/car_dimensions.csv``: length, width,
-height and wheelbase of cars of every class, :func:`published_cars`) gives a density over the
-logarithms of (wheelbase, width, height, length): a Gaussian kernel on each car, shaped as the
-table's covariance and scaled by Silverman's rule (:attr:`PublishedCars.log_kernels`). One
-Gaussian over the whole table cannot bend: a city car and a pickup do not lie on one line of
-proportion against size. The fitted proportions are an observation of three differences of
-those logarithms, as uncertain as the fit's posterior says (never less than
-:attr:`~carbody.policy.FitPolicy.size_proportion_floor`: the posterior knows nothing of how
-real cars differ from the library, nor of the table's own rounding). The wheelbase's posterior
-follows by conditioning each kernel and weighing it by how well it explains the proportions
-(:func:`estimate_size`): a car whose proportions the photo pins is sized by the cars that share
-them; one it does not (a level front view shows no length) is sized more by what cars usually
-are.
+height and wheelbase of cars of every class, :func:`published_cars`) gives a Gaussian over the
+logarithms of (wheelbase, width, height, length). The fitted proportions are an observation
+of three differences of those logarithms, as uncertain as the fit's posterior says (never
+less than :attr:`~carbody.policy.FitPolicy.size_proportion_floor`: the posterior knows nothing
+of how real cars differ from the library, nor of the table's own rounding). The wheelbase's
+posterior follows by Gaussian conditioning (:func:`estimate_size`): a car whose proportions
+the photo pins is sized by them; one it does not (a level front view shows no length) is
+sized more by what cars usually are.
 
 This replaces the library mix's own wheelbase (the templates' wheelbases weighted by the mix,
 SPEC's default) for the Gaussian-prior methods: on real photos that was 8.6 % off at the
@@ -68,16 +64,6 @@ class PublishedCars:
         """((4,) mean, (4, 4) covariance) of the log dimensions."""
         logs = np.log(self.dimensions)
         return logs.mean(axis=0), np.cov(logs.T)
-
-    @functools.cached_property
-    def log_kernels(self) -> tuple[np.ndarray, np.ndarray]:
-        """((N, 4) centres, (4, 4) covariance): the density of the log dimensions as one Gaussian
-        kernel per car, each the table's covariance times h², Silverman's bandwidth
-        h = (4 / (N (d + 2)))^(1 / (d + 4)) for d = 4 dimensions (about 0.49 for 191 cars)."""
-        logs = np.log(self.dimensions)
-        n, d = logs.shape
-        h = (4.0 / (n * (d + 2))) ** (1.0 / (d + 4))
-        return logs, np.cov(logs.T) * h * h
 
 
 @functools.lru_cache(maxsize=1)
@@ -141,21 +127,13 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
         J = _extent_rows(points)
         variance += np.clip(np.diagonal(J @ keypoint_covariance @ J.T), 0.0, None) / extents ** 2
     observed = np.log(extents / NORMALISED_WHEELBASE)
-    centres, cov = cars.log_kernels
-    seen = _RATIOS @ cov @ _RATIOS.T + np.diag(variance)
-    seen_inv = np.linalg.inv(seen)
-    gain = cov @ _RATIOS.T @ seen_inv
-    misses = observed - centres @ _RATIOS.T                      # (N, 3) per kernel
-    log_w = -0.5 * np.einsum("ij,jk,ik->i", misses, seen_inv, misses)
-    weights = np.exp(log_w - log_w.max())
-    weights /= weights.sum()
-    wheelbases = centres[:, 0] + misses @ gain[0]                # each kernel's conditioned log wheelbase
-    mean_log = float(weights @ wheelbases)
-    within = float((cov - gain @ _RATIOS @ cov)[0, 0])
-    spread = float(np.sqrt(within + weights @ (wheelbases - mean_log) ** 2))
-    prior_spread = float(np.sqrt(cars.log_gaussian[1][0, 0]))
+    mean, cov = cars.log_gaussian
+    gain = cov @ _RATIOS.T @ np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + np.diag(variance))
+    post_mean = mean + gain @ (observed - _RATIOS @ mean)
+    post_cov = cov - gain @ _RATIOS @ cov
     keys = ("length", "width", "height")
-    return SizeEstimate(wheelbase_mm=float(np.exp(mean_log)), spread=spread, prior_spread=prior_spread,
+    spread, prior_spread = float(np.sqrt(post_cov[0, 0])), float(np.sqrt(cov[0, 0]))
+    return SizeEstimate(wheelbase_mm=float(np.exp(post_mean[0])), spread=spread, prior_spread=prior_spread,
                         proportions={k: float(v) for k, v in zip(keys, extents / NORMALISED_WHEELBASE)},
                         proportion_spreads={k: float(v) for k, v in zip(keys, np.sqrt(variance))})
 
