@@ -41,6 +41,9 @@ Definitions (per photo):
   the wheel centres), width 2 · max |x| of the sampled curves (both halves; door mirrors are not
   modelled), against ``published_mm``: signed % (+ = fitted too large); blank where the figure
   is not published. A fit whose "left" half lies at x ≤ 0 is flagged ``mirrored_half``.
+  Beside the wheelbase, the spread the report gives it when its proportions sized it
+  (``report["fit"]["size"]["spread_pct"]``, of its logarithm); the summary counts the published
+  wheelbases within one and two of it.
 - **IoU** of the projected windshield, rear window and hood (topology regions ``windshield``,
   ``rear_window``, ``hood``) against the human polygons ``front_glass``, ``back_glass``,
   ``hood``: each region's loop of curves is sampled on the fitted left half and on its mirror
@@ -430,7 +433,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "view_found_deg": None, "view_diff_deg": None, "view_lean_deg": None, "view_source": None,
            "residual_px_mean": None,
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
-           "wheelbase_err_pct": None, "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
+           "wheelbase_err_pct": None, "wheelbase_spread_pct": None,
+           "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
            "hood": None, "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
            "rims_view_deg": None, "rims": None, "rims_lean_deg": None, "rims_diff_deg": None,
            "fit_rims_diff_deg": None,
@@ -455,6 +459,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
         row["view_lean_deg"] = view_lean_deg(found, row["view_estimate_deg"])
     for key in ("length", "width", "wheelbase"):
         row[f"{key}_err_pct"] = pct_error(row["fitted_mm"][key], published.get(key))
+    if fit["wheelbase_from"] == "proportions" and fit.get("size"):
+        row["wheelbase_spread_pct"] = fit["size"]["spread_pct"]
     row["iou"], row["wheel_dist_px"], dv_px = how_it_sits(photo, camera, cp)
     row["hood"] = hood_offset(photo, camera, cp)
     if row["hood"]:
@@ -770,6 +776,9 @@ def summarise(rows: list[dict]) -> dict:
     # the car's width against its wheelbase, signed: how narrow or wide the fitted shape is
     widths = [100.0 * ((1 + r["width_err_pct"] / 100) / (1 + r["wheelbase_err_pct"] / 100) - 1) for r in sized
               if r["width_err_pct"] is not None]
+    # how often the published wheelbase lies within the spread the report gives (of its logarithm)
+    spread = [(abs(math.log1p(r["wheelbase_err_pct"] / 100)), r["wheelbase_spread_pct"] / 100) for r in rows
+              if r["wheelbase_err_pct"] is not None and r["wheelbase_spread_pct"] is not None]
     times = [r["seconds"] for r in rows]
     cpu = [r["cpu_seconds"] for r in rows if r["cpu_seconds"] is not None]
     return {
@@ -786,6 +795,10 @@ def summarise(rows: list[dict]) -> dict:
         "median_abs_length_over_wheelbase_err_pct": median_or_none(abs(p) for p in proportion),
         "median_signed_wheelbase_err_pct": median_or_none(r["wheelbase_err_pct"] for r in sized),
         "median_signed_width_over_wheelbase_err_pct": median_or_none(widths),
+        "wheelbase_spread_measured": len(spread),
+        "median_wheelbase_spread_pct": median_or_none(100.0 * sd for _, sd in spread),
+        "wheelbase_within_spread": sum(err <= sd for err, sd in spread),
+        "wheelbase_within_two_spreads": sum(err <= 2 * sd for err, sd in spread),
         "median_residual_pct": median_or_none(r["residual_pct"] for r in rows),
         **{f"median_iou_{k}": median_or_none(r["iou"][k] for r in rows) for k, _ in REGION_PARTS},
         **{f"iou_{k}_measured": sum(r["iou"][k] is not None for r in rows) for k, _ in REGION_PARTS},
@@ -865,6 +878,9 @@ def summary_table(s: dict) -> str:
              f"{fmt(s['median_signed_wheelbase_err_pct'], '.1f', signed=True)} % |",
              f"| median signed width ÷ wheelbase error (−: the fitted car too narrow) | "
              f"{fmt(s['median_signed_width_over_wheelbase_err_pct'], '.1f', signed=True)} % |",
+             f"| the wheelbase's spread the report gives (median), and the published wheelbase within one / two "
+             f"of it (of {s['wheelbase_spread_measured']}) | ±{fmt(s['median_wheelbase_spread_pct'], '.1f')} %; "
+             f"{s['wheelbase_within_spread']} / {s['wheelbase_within_two_spreads']} |",
              f"| median IoU windshield ↔ front_glass | {with_n('windshield')} |",
              f"| median IoU rear window ↔ back_glass | {with_n('rear_window')} |",
              f"| median IoU hood ↔ hood | {with_n('hood')} |",

@@ -156,6 +156,8 @@ def test_metrics_are_finite_where_defined(bench_run):
         for key in ("length", "width", "wheelbase"):
             assert (r[f"{key}_err_pct"] is None) == (key not in r["published_mm"])
             assert r[f"{key}_err_pct"] is None or math.isfinite(r[f"{key}_err_pct"])
+        # no wheelbase told: the report's spread of the one the proportions gave, a few per cent
+        assert 2.0 < r["wheelbase_spread_pct"] < 20.0
         for region, part in (("windshield", "front_glass"), ("rear_window", "back_glass"), ("hood", "hood")):
             iou = r["iou"][region]
             assert (iou is None) == (part not in r["parts"])  # only parts the data set drew
