@@ -8,12 +8,14 @@ height *in wheelbases* say how long its wheelbase is likely to be.
 The table of published dimensions (``carbody/data/car_dimensions.csv``: length, width,
 height and wheelbase of cars of every class, :func:`published_cars`) gives a Gaussian over the
 logarithms of (wheelbase, width, height, length). The fitted proportions are an observation
-of three differences of those logarithms, as uncertain as the fit's posterior says (never
-less than :attr:`~carbody.policy.FitPolicy.size_proportion_floor`: the posterior knows nothing
-of how real cars differ from the library, nor of the table's own rounding). The wheelbase's
-posterior follows by Gaussian conditioning (:func:`estimate_size`): a car whose proportions
-the photo pins is sized by them; one it does not (a level front view shows no length) is
-sized more by what cars usually are.
+of three differences of those logarithms, as uncertain as the fit's posterior says, together
+(each never less than :attr:`~carbody.policy.FitPolicy.size_proportion_floor`: the posterior
+knows nothing of how real cars differ from the library, nor of the table's own rounding). The
+posterior holds the image scale's own uncertainty (:func:`carbody.fit.solve.scale_spread`): a
+level front view shows the width against the height but neither against the unseen
+wheelbase, so there the two err together. The wheelbase's posterior follows by Gaussian
+conditioning (:func:`estimate_size`): a car whose proportions the photo pins is sized by them;
+one it does not (a level front view) is sized more by what cars usually are.
 
 This replaces the library mix's own wheelbase (the templates' wheelbases weighted by the mix,
 SPEC's default) for the Gaussian-prior methods: on real photos that was 8.6 % off at the
@@ -85,6 +87,10 @@ class SizeEstimate:
         prior_spread: the same for a car of unknown proportions (the table's own spread).
         proportions: {"length", "width", "height"}: the fitted car's, in wheelbases.
         proportion_spreads: the same keys: each proportion's uncertainty used, as a fraction.
+        proportion_covariance: (3, 3) the proportions' uncertainty used, together (their log
+            ratios, in ``proportions``' order): a view pins some of their differences only.
+        dimensions_mm, dimension_spreads: {"wheelbase", "width", "height", "length"}: each
+            dimension's most likely value (mm) and spread (a fraction), read as the wheelbase is.
     """
 
     wheelbase_mm: float
@@ -92,12 +98,17 @@ class SizeEstimate:
     prior_spread: float
     proportions: dict[str, float]
     proportion_spreads: dict[str, float]
+    proportion_covariance: np.ndarray | None = None
+    dimensions_mm: dict[str, float] | None = None
+    dimension_spreads: dict[str, float] | None = None
 
     def as_dict(self) -> dict:
         return {"wheelbase_mm": self.wheelbase_mm, "spread_pct": 100.0 * self.spread,
                 "prior_spread_pct": 100.0 * self.prior_spread,
                 "proportions": self.proportions,
-                "proportion_spreads_pct": {k: 100.0 * v for k, v in self.proportion_spreads.items()}}
+                "proportion_spreads_pct": {k: 100.0 * v for k, v in self.proportion_spreads.items()},
+                "dimensions_mm": self.dimensions_mm,
+                "dimension_spreads_pct": {k: 100.0 * v for k, v in (self.dimension_spreads or {}).items()}}
 
 
 def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, floor: float,
@@ -121,21 +132,26 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
                         samples[:, 2].max() + TYRE_RADIUS_NORM])
     if not (np.all(np.isfinite(extents)) and np.all(extents > 0)):
         raise FitError("the fitted car has no length, width or height to size it by")
-    variance = np.full(3, floor ** 2)
-    variance[2] += (TYRE_RADIUS_SPREAD_NORM / extents[2]) ** 2
+    noise = np.diag(np.full(3, floor ** 2))
+    noise[2, 2] += (TYRE_RADIUS_SPREAD_NORM / extents[2]) ** 2
     if keypoint_covariance is not None:
-        J = _extent_rows(points)
-        variance += np.clip(np.diagonal(J @ keypoint_covariance @ J.T), 0.0, None) / extents ** 2
+        J = _extent_rows(points) / extents[:, None]
+        noise += J @ keypoint_covariance @ J.T
+    variance = np.diagonal(noise)
     observed = np.log(extents / NORMALISED_WHEELBASE)
     mean, cov = cars.log_gaussian
-    gain = cov @ _RATIOS.T @ np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + np.diag(variance))
+    gain = cov @ _RATIOS.T @ np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + noise)
     post_mean = mean + gain @ (observed - _RATIOS @ mean)
     post_cov = cov - gain @ _RATIOS @ cov
     keys = ("length", "width", "height")
     spread, prior_spread = float(np.sqrt(post_cov[0, 0])), float(np.sqrt(cov[0, 0]))
     return SizeEstimate(wheelbase_mm=float(np.exp(post_mean[0])), spread=spread, prior_spread=prior_spread,
                         proportions={k: float(v) for k, v in zip(keys, extents / NORMALISED_WHEELBASE)},
-                        proportion_spreads={k: float(v) for k, v in zip(keys, np.sqrt(variance))})
+                        proportion_spreads={k: float(v) for k, v in zip(keys, np.sqrt(variance))},
+                        proportion_covariance=noise,
+                        dimensions_mm={k.removesuffix("_mm"): float(np.exp(m)) for k, m in zip(DIMENSIONS, post_mean)},
+                        dimension_spreads={k.removesuffix("_mm"): float(np.sqrt(v))
+                                           for k, v in zip(DIMENSIONS, np.diagonal(post_cov))})
 
 
 def _extent_rows(points: np.ndarray) -> np.ndarray:

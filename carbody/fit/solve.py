@@ -281,7 +281,8 @@ class ShapePosterior:
     Σ = V·diag(λ / (λ + g²e))·Vᵀ + (I − V·Vᵀ): directions the image sees (the right singular
     vectors V of the projected basis, squared singular values e) narrowed by the data, the
     others left at the prior's unit variance. The mixture's posterior is the components
-    weighted by ``weights``: its covariance adds their spread about the mean. When the marks
+    weighted by ``weights``: its covariance adds their spread about the mean, and the shape's
+    trade with the image scale (:func:`scale_spread`). When the marks
     fit worse than λ's noise allows (a car unlike the library, a misplaced mark), the whole
     covariance is scaled by ``inflation`` = cost / (λ · data rows), never below 1.
 
@@ -294,6 +295,9 @@ class ShapePosterior:
         view_spread: (n, 3·35) or None: each refined view angle's share, the keypoints' move
             per one standard deviation of that angle (:func:`carbody.fit.search.view_spread` adds it
             after the refinement); its outer products join the covariance.
+        scale_solve: the solve's pieces that :func:`scale_spread` reads (its ``ams``, ``AB``,
+            ``b`` and each centre's scale and prior centre), or None: the image scale taken as
+            known.
     """
 
     V: np.ndarray
@@ -305,6 +309,7 @@ class ShapePosterior:
     keypoint_basis: np.ndarray
     inflation: float = 1.0
     view_spread: np.ndarray | None = None
+    scale_solve: tuple | None = None
 
 
 def nnls_active_set(A: np.ndarray, b: np.ndarray, passive: np.ndarray | None = None,
@@ -661,12 +666,14 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
         a = w @ model.group_means + delta
         g = float(w @ gs)
         prior_part = np.sqrt(prior_weight) * delta
-        posterior = ShapePosterior(V, e, prior_weight, g, model.group_means + deltas, w, Bk)
+        posterior = ShapePosterior(V, e, prior_weight, g, model.group_means + deltas, w, Bk,
+                                   scale_solve=(am + model.group_means @ AB.T, AB, b, gs, model.group_means))
     else:
         a, g, _, evidence, (V, e) = _map_coefficients(am, AB, b, prior_weight)
         a, g, evidence = a[0], float(g[0]), float(evidence[0])
         prior_part = np.sqrt(prior_weight) * a
-        posterior = ShapePosterior(V, e, prior_weight, g, a[None], np.ones(1), Bk)
+        posterior = ShapePosterior(V, e, prior_weight, g, a[None], np.ones(1), Bk,
+                                   scale_solve=(am[None], AB, b, np.array([g]), np.zeros((1, len(a)))))
     if not g > 0:
         raise FitError("no shape reproduces these keypoints at a positive image scale "
                        "(check the view angle and which side each keypoint name is on)")
@@ -723,9 +730,9 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     """(35, 3, 3) float: the posterior covariance of each keypoint, normalised units².
 
     Keypoints the view does not see keep the library's spread; those it sees are pinned by the
-    marks (to λ's noise) except along the camera's line of sight. A refined view's own
-    uncertainty joins it (``view_spread``); the photo-matching deformation that follows does
-    not. BENCHMARKS.md measures how it compares with the leave-one-out errors.
+    marks (to λ's noise) except along the camera's line of sight. The image scale's own
+    uncertainty joins it (:func:`scale_spread`), and a refined view's (``view_spread``); the
+    photo-matching deformation that follows does not. BENCHMARKS.md measures how it compares with the leave-one-out errors.
     """
     cov = joint_keypoint_covariance(posterior)
     n = len(cov) // 3
@@ -742,10 +749,47 @@ def joint_keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     cov = Bk @ Bk.T - (BV * shrink) @ BV.T
     spread = (posterior.centres - posterior.weights @ posterior.centres) @ Bk.T
     cov += (spread * posterior.weights[:, None]).T @ spread
+    if posterior.scale_solve is not None:
+        move = scale_spread(posterior)
+        cov += np.outer(move, move)
     cov *= posterior.inflation
     if posterior.view_spread is not None:  # already at the marks' own noise level
         cov += posterior.view_spread.T @ posterior.view_spread
     return cov
+
+
+#: The step in log image scale of :func:`scale_spread`'s central differences, and the most its
+#: standard deviation is taken to be (a flat evidence: the marks say nothing of the scale).
+SCALE_STEP, MAX_SCALE_SD = 0.02, 0.5
+
+
+def scale_spread(posterior: ShapePosterior) -> np.ndarray:
+    """(3·35,): the keypoints' move (normalised units) per one standard deviation of the image's
+    scale — a Laplace approximation, like :func:`carbody.fit.search.view_spread` for the view.
+
+    The posterior's covariance holds the scale at its best value. But a bigger car farther
+    away looks the same: in a level front view the marks pin the width and height in pixels,
+    and how many wheelbases they are rests on the scale, which only the library's shapes
+    decide. The evidence's curvature in log scale (the shape solved afresh at each scale, every
+    prior centre at its own, all moved by one factor) gives that scale's standard deviation at
+    the prior's noise level λ; central differences of the posterior mean shape give its slope."""
+    ams, AB, b, gs, offsets = posterior.scale_solve
+    V, e, lam = posterior.V, posterior.e, posterior.lam
+    ABV = AB @ V
+    y1, y2 = ABV.T @ b, ams @ ABV
+    evidence, means = [], []
+    for step in (-SCALE_STEP, 0.0, SCALE_STEP):
+        g = (gs * np.exp(step))[:, None]
+        c = g * (y1 - g * y2) / (g * g * e + lam)
+        r = g * (ams + c @ ABV.T) - b
+        nle = (np.einsum("tm,tm->t", r, r) + lam * np.einsum("tq,tq->t", c, c)) / (2 * lam) \
+            + 0.5 * np.sum(np.log1p(g ** 2 * e / lam), axis=1)
+        w = np.exp(-(nle - nle.min()))
+        evidence.append(float(nle.min() - np.log(w.sum())))
+        means.append((w / w.sum()) @ (offsets + c @ V.T))
+    curvature = (evidence[0] + evidence[2] - 2.0 * evidence[1]) / SCALE_STEP ** 2
+    sd = MAX_SCALE_SD if not curvature > 0 else min(1.0 / np.sqrt(curvature), MAX_SCALE_SD)
+    return posterior.keypoint_basis @ ((means[2] - means[0]) / (2 * SCALE_STEP)) * sd
 
 
 _SCALE_GRID = np.geomspace(0.1, 10.0, 21)  # the scale search's first grid, × the unregularised scale
