@@ -85,6 +85,37 @@ def test_the_view_says_which_proportion_it_shows(library):
     assert width_height_correlation(front) > 0.6 > width_height_correlation(side) + 0.2
 
 
+def test_the_scale_s_trade_is_what_a_front_view_cannot_tell(library, topology):
+    """Along the fit's trade with the image scale (a bigger car farther away) the marks of a
+    level front view hardly move, those of a side view do; the size moves a front view's car
+    along it toward the published cars' proportions, and leaves a side view's where it is."""
+    from carbody.fit.solve import along_scale
+
+    t, loo, truth = _left_out(library, "Toyota Camry XV70")
+    kp = topology.keypoint_point_indices
+
+    def fitted(azimuth):
+        slots, uv = _observe(truth, View(azimuth, 0), noise=1.0)
+        return fit_wireframe({s.name: p for s, p in zip(slots, uv)}, View(azimuth, 0), loo)
+
+    def width(shape):  # in wheelbases
+        return 2.0 * shape.reshape(-1, 3)[:, 0].max() / 1000.0
+
+    moved = {}
+    for azimuth in (0, 90):
+        res = fitted(azimuth)
+        sol = res.solution
+        step = along_scale(sol, 0.1, res.slots, res.uv, res.view, kp)
+        moved[azimuth] = (np.mean(step.residual_px) - np.mean(sol.residual_px), width(step.shape) / width(sol.shape) - 1)
+        if azimuth == 0:
+            assert abs(res.size.scale_steps) > 0.05
+        else:
+            assert abs(res.size.scale_steps) < abs(fitted(0).size.scale_steps)
+    (front_px, front_width), (side_px, _) = moved[0], moved[90]
+    assert front_width < -0.05  # the scale 10 % larger, the car some 10 % narrower in wheelbases
+    assert side_px > 5 * max(front_px, 0.05)
+
+
 def test_a_car_with_no_extent_is_refused():
     with pytest.raises(FitError, match="no length, width or height"):
         estimate_size(np.zeros(840), None, FLOOR)

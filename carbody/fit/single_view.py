@@ -40,7 +40,7 @@ from carbody.fit.robust import explains_poorly, left_out_in_turn, marks_noise, t
 from carbody.fit.search import distinct, refine, search_views, view_spread
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.size import SizeEstimate, estimate_size
-from carbody.fit.solve import joint_keypoint_covariance, reaches_camera
+from carbody.fit.solve import along_scale, joint_keypoint_covariance, reaches_camera, scale_spread, scale_trade
 from carbody.fit.view_prior import ViewPrior
 from carbody.library import Library, check_library
 from carbody.tolerances import NORMALISED_WHEELBASE
@@ -151,6 +151,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             (by_distance, "camera distance") if by_distance is not None else \
             (size.wheelbase_mm, "proportions") if size is not None else \
             (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
+        if source == "proportions":
+            turn.hypothesis = _sized(turn.hypothesis, size)
         result = _result(turn, photo_uv, prior, library, options, wheelbase, source, name)
         result.outline, result.wheels = outline_fit, wheels_fit
         result.size, result.wheelbase_by_mix_mm = size, size_by_mix
@@ -301,7 +303,29 @@ def _size(scorer: Scorer, hypothesis: Hypothesis, library: Library, options: Fit
     if options.refine and sol.posterior.view_spread is None:
         sol.posterior.view_spread = view_spread(scorer, hypothesis, ("azimuth", "elevation"))
     shape = sol.shape if sol.shape is not None else library.S[:, sol.support] @ sol.H[sol.support]
-    return estimate_size(shape, joint_keypoint_covariance(sol.posterior), options.policy.size_proportion_floor)
+    move = None
+    if sol.posterior.scale_solve is not None:  # at the covariance's own level (its inflation)
+        move = scale_spread(sol.posterior) * np.sqrt(sol.posterior.inflation)
+    return estimate_size(shape, joint_keypoint_covariance(sol.posterior), options.policy.size_proportion_floor,
+                         scale_move=move)
+
+
+def _sized(hypothesis: Hypothesis, size: SizeEstimate) -> Hypothesis:
+    """The hypothesis moved along the fit's trade with the image scale to where the published
+    cars put it (:attr:`SizeEstimate.scale_steps`, :func:`~carbody.fit.solve.along_scale`): a
+    level front view shows the width against the height, not against the wheelbase, and the
+    mix's width in wheelbases is then the table's to read. Unmoved where the move would put
+    part of the car through a close camera."""
+    sol = hypothesis.solution
+    if not size.scale_steps or sol.posterior is None or sol.posterior.scale_solve is None:
+        return hypothesis
+    _, sd = scale_trade(sol.posterior)
+    log_scale = size.scale_steps * sd * np.sqrt(sol.posterior.inflation)
+    moved = along_scale(sol, log_scale, hypothesis.kept_slots, hypothesis.marks.uv[hypothesis.kept], hypothesis.view,
+                        load_topology().keypoint_point_indices)
+    if reaches_camera(moved.shape, hypothesis.view):
+        return hypothesis
+    return replace(hypothesis, solution=moved)
 
 
 def _result(turn: Turn, photo_uv: np.ndarray, prior: ViewPrior, library: Library, options: FitOptions,

@@ -91,6 +91,10 @@ class SizeEstimate:
             ratios, in ``proportions``' order): a view pins some of their differences only.
         dimensions_mm, dimension_spreads: {"wheelbase", "width", "height", "length"}: each
             dimension's most likely value (mm) and spread (a fraction), read as the wheelbase is.
+        scale_steps: how many standard deviations of the image scale the fitted car is most
+            likely off by, as the table reads its proportions (0 without ``scale_move``): the
+            fit moves the car back along what the marks cannot tell from the scale
+            (:func:`carbody.fit.solve.along_scale`).
     """
 
     wheelbase_mm: float
@@ -101,6 +105,7 @@ class SizeEstimate:
     proportion_covariance: np.ndarray | None = None
     dimensions_mm: dict[str, float] | None = None
     dimension_spreads: dict[str, float] | None = None
+    scale_steps: float = 0.0
 
     def as_dict(self) -> dict:
         return {"wheelbase_mm": self.wheelbase_mm, "spread_pct": 100.0 * self.spread,
@@ -108,11 +113,12 @@ class SizeEstimate:
                 "proportions": self.proportions,
                 "proportion_spreads_pct": {k: 100.0 * v for k, v in self.proportion_spreads.items()},
                 "dimensions_mm": self.dimensions_mm,
-                "dimension_spreads_pct": {k: 100.0 * v for k, v in (self.dimension_spreads or {}).items()}}
+                "dimension_spreads_pct": {k: 100.0 * v for k, v in (self.dimension_spreads or {}).items()},
+                "scale_steps": self.scale_steps}
 
 
 def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, floor: float,
-                  cars: PublishedCars | None = None) -> SizeEstimate:
+                  cars: PublishedCars | None = None, scale_move: np.ndarray | None = None) -> SizeEstimate:
     """The wheelbase of a fitted car from its proportions (module docstring).
 
     Args:
@@ -122,6 +128,10 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
             or None (each proportion then as uncertain as ``floor``).
         floor: the least uncertainty of each proportion, a fraction.
         cars: the table (default the shipped one).
+        scale_move: (105,) the keypoints' move per standard deviation of the image scale, the
+            share of ``keypoint_covariance`` that the marks cannot tell from the scale
+            (:func:`carbody.fit.solve.scale_spread`), or None. Given, :attr:`SizeEstimate.scale_steps`
+            says how far along it the table puts the car.
     Raises:
         FitError: a shape with no length, width or height.
     """
@@ -140,7 +150,12 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
     variance = np.diagonal(noise)
     observed = np.log(extents / NORMALISED_WHEELBASE)
     mean, cov = cars.log_gaussian
-    gain = cov @ _RATIOS.T @ np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + noise)
+    marginal = np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + noise)  # of the observed proportions
+    gain = cov @ _RATIOS.T @ marginal
+    steps = 0.0
+    if scale_move is not None and keypoint_covariance is not None:
+        u = J @ scale_move  # the proportions' move per standard deviation of the scale
+        steps = -float(u @ marginal @ (observed - _RATIOS @ mean))
     post_mean = mean + gain @ (observed - _RATIOS @ mean)
     post_cov = cov - gain @ _RATIOS @ cov
     keys = ("length", "width", "height")
@@ -151,7 +166,8 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
                         proportion_covariance=noise,
                         dimensions_mm={k.removesuffix("_mm"): float(np.exp(m)) for k, m in zip(DIMENSIONS, post_mean)},
                         dimension_spreads={k.removesuffix("_mm"): float(np.sqrt(v))
-                                           for k, v in zip(DIMENSIONS, np.diagonal(post_cov))})
+                                           for k, v in zip(DIMENSIONS, np.diagonal(post_cov))},
+                        scale_steps=steps)
 
 
 def _extent_rows(points: np.ndarray) -> np.ndarray:

@@ -295,9 +295,9 @@ class ShapePosterior:
         view_spread: (n, 3·35) or None: each refined view angle's share, the keypoints' move
             per one standard deviation of that angle (:func:`carbody.fit.search.view_spread` adds it
             after the refinement); its outer products join the covariance.
-        scale_solve: the solve's pieces that :func:`scale_spread` reads (its ``ams``, ``AB``,
-            ``b`` and each centre's scale and prior centre), or None: the image scale taken as
-            known.
+        scale_solve: the solve's pieces that :func:`scale_trade` reads (its ``ams``, ``AB``,
+            ``b``, each centre's scale and prior centre, and the shape basis), or None: the
+            image scale taken as known.
     """
 
     V: np.ndarray
@@ -667,13 +667,14 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
         g = float(w @ gs)
         prior_part = np.sqrt(prior_weight) * delta
         posterior = ShapePosterior(V, e, prior_weight, g, model.group_means + deltas, w, Bk,
-                                   scale_solve=(am + model.group_means @ AB.T, AB, b, gs, model.group_means))
+                                   scale_solve=(am + model.group_means @ AB.T, AB, b, gs, model.group_means,
+                                                model.basis))
     else:
         a, g, _, evidence, (V, e) = _map_coefficients(am, AB, b, prior_weight)
         a, g, evidence = a[0], float(g[0]), float(evidence[0])
         prior_part = np.sqrt(prior_weight) * a
         posterior = ShapePosterior(V, e, prior_weight, g, a[None], np.ones(1), Bk,
-                                   scale_solve=(am[None], AB, b, np.array([g]), np.zeros((1, len(a)))))
+                                   scale_solve=(am[None], AB, b, np.array([g]), np.zeros((1, len(a))), model.basis))
     if not g > 0:
         raise FitError("no shape reproduces these keypoints at a positive image scale "
                        "(check the view angle and which side each keypoint name is on)")
@@ -763,9 +764,10 @@ def joint_keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
 SCALE_STEP, MAX_SCALE_SD = 0.02, 0.5
 
 
-def scale_spread(posterior: ShapePosterior) -> np.ndarray:
-    """(3·35,): the keypoints' move (normalised units) per one standard deviation of the image's
-    scale — a Laplace approximation, like :func:`carbody.fit.search.view_spread` for the view.
+def scale_trade(posterior: ShapePosterior) -> tuple[np.ndarray, float]:
+    """((q,) the posterior mean shape's coefficients' move per unit of log image scale, the log
+    scale's standard deviation): a Laplace approximation, like
+    :func:`carbody.fit.search.view_spread` for the view.
 
     The posterior's covariance holds the scale at its best value. But a bigger car farther
     away looks the same: in a level front view the marks pin the width and height in pixels,
@@ -773,7 +775,7 @@ def scale_spread(posterior: ShapePosterior) -> np.ndarray:
     decide. The evidence's curvature in log scale (the shape solved afresh at each scale, every
     prior centre at its own, all moved by one factor) gives that scale's standard deviation at
     the prior's noise level λ; central differences of the posterior mean shape give its slope."""
-    ams, AB, b, gs, offsets = posterior.scale_solve
+    ams, AB, b, gs, offsets, _ = posterior.scale_solve
     V, e, lam = posterior.V, posterior.e, posterior.lam
     ABV = AB @ V
     y1, y2 = ABV.T @ b, ams @ ABV
@@ -789,7 +791,33 @@ def scale_spread(posterior: ShapePosterior) -> np.ndarray:
         means.append((w / w.sum()) @ (offsets + c @ V.T))
     curvature = (evidence[0] + evidence[2] - 2.0 * evidence[1]) / SCALE_STEP ** 2
     sd = MAX_SCALE_SD if not curvature > 0 else min(1.0 / np.sqrt(curvature), MAX_SCALE_SD)
-    return posterior.keypoint_basis @ ((means[2] - means[0]) / (2 * SCALE_STEP)) * sd
+    return (means[2] - means[0]) / (2 * SCALE_STEP), float(sd)
+
+
+def scale_spread(posterior: ShapePosterior) -> np.ndarray:
+    """(3·35,): the keypoints' move (normalised units) per one standard deviation of the image's
+    scale (:func:`scale_trade`), at λ's noise level."""
+    slope, sd = scale_trade(posterior)
+    return posterior.keypoint_basis @ slope * sd
+
+
+def along_scale(solution: MixSolution, log_scale: float, slots: list[KeypointSlot], uv: np.ndarray,
+                view: View, point_indices: np.ndarray) -> MixSolution:
+    """The solution moved along its trade with the image scale (:func:`scale_trade`): the image
+    scale times exp(``log_scale``), the shape moved as the solve would have moved it there, the
+    offset and residuals refitted to the marks (``slots``, ``uv``) at ``view``. The marks see
+    the move only to second order: it is what they cannot tell."""
+    from dataclasses import replace
+
+    slope, _ = scale_trade(solution.posterior)
+    basis = solution.posterior.scale_solve[5]
+    shape = solution.shape + basis @ slope * log_scale
+    scale = solution.scale * float(np.exp(log_scale))
+    kp = shape.reshape(-1, 3)[point_indices]
+    M, const = camera_rows(slots, view, kp)
+    z = np.asarray(uv, dtype=float)
+    offset, pred = _image_fit(M, kp, z, scale, const)
+    return replace(solution, shape=shape, scale=scale, offset=offset, residual_px=np.linalg.norm(pred - z, axis=1))
 
 
 _SCALE_GRID = np.geomspace(0.1, 10.0, 21)  # the scale search's first grid, × the unregularised scale
