@@ -198,6 +198,14 @@ class FitPolicy:
     #: spread, which the fit's posterior does not know.
     size_proportion_floor: float = 0.03
 
+    #: The size moves the fitted car along its trade with the image scale, which the marks
+    #: cannot tell (:func:`carbody.fit.solve.along_scale`). A move that raises the marks' mean
+    #: residual by more than ``size_move_misfit`` × their noise (√λ × their spread, px) has
+    #: left the range where that trade is linear (a close camera, marks no car fits): it is
+    #: halved, at most ``size_move_halvings`` times, and else not made.
+    size_move_misfit: float = 0.5
+    size_move_halvings: int = 3
+
     # ---- the car's outline in the photo (carbody.fit.outline)
 
     #: The segmentation works on the photo scaled down to this many pixels on its longer side:

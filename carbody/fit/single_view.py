@@ -152,7 +152,7 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             (size.wheelbase_mm, "proportions") if size is not None else \
             (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
         if source == "proportions":
-            turn.hypothesis = _sized(turn.hypothesis, size)
+            turn.hypothesis = _sized(turn.hypothesis, size, options.policy)
         result = _result(turn, photo_uv, prior, library, options, wheelbase, source, name)
         result.outline, result.wheels = outline_fit, wheels_fit
         result.size, result.wheelbase_by_mix_mm = size, size_by_mix
@@ -310,22 +310,28 @@ def _size(scorer: Scorer, hypothesis: Hypothesis, library: Library, options: Fit
                          scale_move=move)
 
 
-def _sized(hypothesis: Hypothesis, size: SizeEstimate) -> Hypothesis:
+def _sized(hypothesis: Hypothesis, size: SizeEstimate, policy) -> Hypothesis:
     """The hypothesis moved along the fit's trade with the image scale to where the published
     cars put it (:attr:`SizeEstimate.scale_steps`, :func:`~carbody.fit.solve.along_scale`): a
     level front view shows the width against the height, not against the wheelbase, and the
-    mix's width in wheelbases is then the table's to read. Unmoved where the move would put
-    part of the car through a close camera."""
+    mix's width in wheelbases is then the table's to read. A move the marks see is halved
+    (``size_move_misfit``, ``size_move_halvings``); none is made that would put part of the car
+    through a close camera."""
     sol = hypothesis.solution
     if not size.scale_steps or sol.posterior is None or sol.posterior.scale_solve is None:
         return hypothesis
     _, sd = scale_trade(sol.posterior)
     log_scale = size.scale_steps * sd * np.sqrt(sol.posterior.inflation)
-    moved = along_scale(sol, log_scale, hypothesis.kept_slots, hypothesis.marks.uv[hypothesis.kept], hypothesis.view,
-                        load_topology().keypoint_point_indices)
-    if reaches_camera(moved.shape, hypothesis.view):
-        return hypothesis
-    return replace(hypothesis, solution=moved)
+    noise_px = np.sqrt(sol.posterior.lam) * sol.rho
+    before = float(np.mean(sol.residual_px))
+    for _ in range(policy.size_move_halvings + 1):
+        moved = along_scale(sol, log_scale, hypothesis.kept_slots, hypothesis.marks.uv[hypothesis.kept],
+                            hypothesis.view, load_topology().keypoint_point_indices)
+        if float(np.mean(moved.residual_px)) - before <= policy.size_move_misfit * noise_px \
+                and not reaches_camera(moved.shape, hypothesis.view):
+            return replace(hypothesis, solution=moved)
+        log_scale /= 2.0
+    return hypothesis
 
 
 def _result(turn: Turn, photo_uv: np.ndarray, prior: ViewPrior, library: Library, options: FitOptions,
