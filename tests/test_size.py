@@ -106,7 +106,8 @@ def test_the_scale_s_trade_is_what_a_front_view_cannot_tell(library, topology):
         res = fitted(azimuth)
         sol = res.solution
         step = along_scale(sol, 0.1, res.slots, res.uv, res.view, kp)
-        moved[azimuth] = (np.mean(step.residual_px) - np.mean(sol.residual_px), width(step.shape) / width(sol.shape) - 1)
+        moved[azimuth] = (np.mean(step.residual_px) - np.mean(sol.residual_px),
+                          width(step.shape) / width(sol.shape) - 1)
         if azimuth == 0:
             assert abs(res.size.scale_steps) > 0.05
         else:

@@ -43,6 +43,7 @@ from carbody.fit.size import SizeEstimate, estimate_size
 from carbody.fit.solve import along_scale, joint_keypoint_covariance, reaches_camera, scale_spread, scale_trade
 from carbody.fit.view_prior import ViewPrior
 from carbody.library import Library, check_library
+from carbody.policy import FitPolicy
 from carbody.tolerances import NORMALISED_WHEELBASE
 from carbody.topology import load_topology
 from carbody.view.labels import angular_difference
@@ -310,7 +311,7 @@ def _size(scorer: Scorer, hypothesis: Hypothesis, library: Library, options: Fit
                          scale_move=move)
 
 
-def _sized(hypothesis: Hypothesis, size: SizeEstimate, policy) -> Hypothesis:
+def _sized(hypothesis: Hypothesis, size: SizeEstimate, policy: FitPolicy) -> Hypothesis:
     """The hypothesis moved along the fit's trade with the image scale to where the published
     cars put it (:attr:`SizeEstimate.scale_steps`, :func:`~carbody.fit.solve.along_scale`): a
     level front view shows the width against the height, not against the wheelbase, and the

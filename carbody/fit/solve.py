@@ -282,9 +282,9 @@ class ShapePosterior:
     vectors V of the projected basis, squared singular values e) narrowed by the data, the
     others left at the prior's unit variance. The mixture's posterior is the components
     weighted by ``weights``: its covariance adds their spread about the mean, and the shape's
-    trade with the image scale (:func:`scale_spread`). When the marks
-    fit worse than λ's noise allows (a car unlike the library, a misplaced mark), the whole
-    covariance is scaled by ``inflation`` = cost / (λ · data rows), never below 1.
+    trade with the image scale (:func:`scale_spread`). When the marks fit worse than λ's noise
+    allows (a car unlike the library, a misplaced mark), the whole covariance is scaled by
+    ``inflation`` = cost / (λ · data rows), never below 1.
 
     Attributes:
         V: (q, r) right singular vectors; e: (r,) squared singular values; lam: λ.
@@ -733,7 +733,8 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     Keypoints the view does not see keep the library's spread; those it sees are pinned by the
     marks (to λ's noise) except along the camera's line of sight. The image scale's own
     uncertainty joins it (:func:`scale_spread`), and a refined view's (``view_spread``); the
-    photo-matching deformation that follows does not. BENCHMARKS.md measures how it compares with the leave-one-out errors.
+    photo-matching deformation that follows does not. BENCHMARKS.md measures how it compares
+    with the leave-one-out errors.
     """
     cov = joint_keypoint_covariance(posterior)
     n = len(cov) // 3
