@@ -658,7 +658,8 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
             b = np.concatenate([b, w * target / rho])
     if mixture and model.group_means is not None:
         # One Gaussian per template centre, shared covariance; the posterior mean of the mixture.
-        deltas, gs, _, nle, (V, e) = _map_coefficients(am + model.group_means @ AB.T, AB, b, prior_weight)
+        ams = am + model.group_means @ AB.T
+        deltas, gs, _, nle, (V, e) = _map_coefficients(ams, AB, b, prior_weight)
         w = np.exp(-(nle - nle.min()))
         evidence = float(nle.min() - np.log(w.mean()))
         w /= w.sum()
@@ -667,8 +668,7 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
         g = float(w @ gs)
         prior_part = np.sqrt(prior_weight) * delta
         posterior = ShapePosterior(V, e, prior_weight, g, model.group_means + deltas, w, Bk,
-                                   scale_solve=(am + model.group_means @ AB.T, AB, b, gs, model.group_means,
-                                                model.basis))
+                                   scale_solve=(ams, AB, b, gs, model.group_means, model.basis))
     else:
         a, g, _, evidence, (V, e) = _map_coefficients(am, AB, b, prior_weight)
         a, g, evidence = a[0], float(g[0]), float(evidence[0])
