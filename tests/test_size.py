@@ -101,17 +101,15 @@ def test_the_scale_s_trade_is_what_a_front_view_cannot_tell(library, topology):
     def width(shape):  # in wheelbases
         return 2.0 * shape.reshape(-1, 3)[:, 0].max() / 1000.0
 
-    moved = {}
+    moved, steps = {}, {}
     for azimuth in (0, 90):
         res = fitted(azimuth)
         sol = res.solution
         step = along_scale(sol, 0.1, res.slots, res.uv, res.view, kp)
         moved[azimuth] = (np.mean(step.residual_px) - np.mean(sol.residual_px),
                           width(step.shape) / width(sol.shape) - 1)
-        if azimuth == 0:
-            assert abs(res.size.scale_steps) > 0.05
-        else:
-            assert abs(res.size.scale_steps) < abs(fitted(0).size.scale_steps)
+        steps[azimuth] = abs(res.size.scale_steps)
+    assert steps[0] > 0.05 and steps[90] < steps[0]
     (front_px, front_width), (side_px, _) = moved[0], moved[90]
     assert front_width < -0.05  # the scale 10 % larger, the car some 10 % narrower in wheelbases
     assert side_px > 5 * max(front_px, 0.05)

@@ -35,7 +35,7 @@ car's centre: its projection is linearised at the previous round's shape and the
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -272,6 +272,20 @@ class MixSolution:
         return self.weights
 
 
+class ScaleSolve(NamedTuple):
+    """The pieces of a Gaussian-prior solve that :func:`scale_trade` solves again at other image
+    scales: each prior centre's centred projection ``ams`` (T, m), the projected basis ``AB``
+    (m, q), the image ``b`` (m,), each centre's scale ``scales`` (T,) and coefficients
+    ``centres`` (T, q), and the shape basis (840, q) that turns coefficients into a shape."""
+
+    ams: np.ndarray
+    AB: np.ndarray
+    b: np.ndarray
+    scales: np.ndarray
+    centres: np.ndarray
+    basis: np.ndarray
+
+
 @dataclass
 class ShapePosterior:
     """The Gaussian-prior solve's posterior over the shape coefficients a, kept as the solve's
@@ -295,9 +309,8 @@ class ShapePosterior:
         view_spread: (n, 3·35) or None: each refined view angle's share, the keypoints' move
             per one standard deviation of that angle (:func:`carbody.fit.search.view_spread` adds it
             after the refinement); its outer products join the covariance.
-        scale_solve: the solve's pieces that :func:`scale_trade` reads (its ``ams``, ``AB``,
-            ``b``, each centre's scale and prior centre, and the shape basis), or None: the
-            image scale taken as known.
+        scale_solve: the solve's pieces that :func:`scale_trade` reads (:class:`ScaleSolve`),
+            or None: the image scale taken as known.
     """
 
     V: np.ndarray
@@ -309,7 +322,8 @@ class ShapePosterior:
     keypoint_basis: np.ndarray
     inflation: float = 1.0
     view_spread: np.ndarray | None = None
-    scale_solve: tuple | None = None
+    scale_solve: ScaleSolve | None = None
+    _trade: tuple | None = field(default=None, init=False, repr=False)  # scale_trade's, once
 
 
 def nnls_active_set(A: np.ndarray, b: np.ndarray, passive: np.ndarray | None = None,
@@ -668,13 +682,14 @@ def _solve_gauss_linear(model: ShapeModel, mk: np.ndarray, Bk: np.ndarray, point
         g = float(w @ gs)
         prior_part = np.sqrt(prior_weight) * delta
         posterior = ShapePosterior(V, e, prior_weight, g, model.group_means + deltas, w, Bk,
-                                   scale_solve=(ams, AB, b, gs, model.group_means, model.basis))
+                                   scale_solve=ScaleSolve(ams, AB, b, gs, model.group_means, model.basis))
     else:
         a, g, _, evidence, (V, e) = _map_coefficients(am, AB, b, prior_weight)
         a, g, evidence = a[0], float(g[0]), float(evidence[0])
         prior_part = np.sqrt(prior_weight) * a
         posterior = ShapePosterior(V, e, prior_weight, g, a[None], np.ones(1), Bk,
-                                   scale_solve=(am[None], AB, b, np.array([g]), np.zeros((1, len(a))), model.basis))
+                                   scale_solve=ScaleSolve(am[None], AB, b, np.array([g]), np.zeros((1, len(a))),
+                                                          model.basis))
     if not g > 0:
         raise FitError("no shape reproduces these keypoints at a positive image scale "
                        "(check the view angle and which side each keypoint name is on)")
@@ -776,23 +791,20 @@ def scale_trade(posterior: ShapePosterior) -> tuple[np.ndarray, float]:
     decide. The evidence's curvature in log scale (the shape solved afresh at each scale, every
     prior centre at its own, all moved by one factor) gives that scale's standard deviation at
     the prior's noise level λ; central differences of the posterior mean shape give its slope."""
-    ams, AB, b, gs, offsets, _ = posterior.scale_solve
-    V, e, lam = posterior.V, posterior.e, posterior.lam
-    ABV = AB @ V
-    y1, y2 = ABV.T @ b, ams @ ABV
-    evidence, means = [], []
-    for step in (-SCALE_STEP, 0.0, SCALE_STEP):
-        g = (gs * np.exp(step))[:, None]
-        c = g * (y1 - g * y2) / (g * g * e + lam)
-        r = g * (ams + c @ ABV.T) - b
-        nle = (np.einsum("tm,tm->t", r, r) + lam * np.einsum("tq,tq->t", c, c)) / (2 * lam) \
-            + 0.5 * np.sum(np.log1p(g ** 2 * e / lam), axis=1)
-        w = np.exp(-(nle - nle.min()))
-        evidence.append(float(nle.min() - np.log(w.sum())))
-        means.append((w / w.sum()) @ (offsets + c @ V.T))
-    curvature = (evidence[0] + evidence[2] - 2.0 * evidence[1]) / SCALE_STEP ** 2
-    sd = MAX_SCALE_SD if not curvature > 0 else min(1.0 / np.sqrt(curvature), MAX_SCALE_SD)
-    return (means[2] - means[0]) / (2 * SCALE_STEP), float(sd)
+    if posterior._trade is None:
+        pieces, V = posterior.scale_solve, posterior.V
+        ABV = pieces.AB @ V
+        evidence, means = [], []
+        for step in (-SCALE_STEP, 0.0, SCALE_STEP):
+            cv, _, nle = _at_scales(pieces.scales * np.exp(step), pieces.ams, ABV, pieces.b, posterior.e,
+                                    posterior.lam)
+            w = np.exp(-(nle - nle.min()))
+            evidence.append(float(nle.min() - np.log(w.sum())))
+            means.append((w / w.sum()) @ (pieces.centres + cv @ V.T))
+        curvature = (evidence[0] + evidence[2] - 2.0 * evidence[1]) / SCALE_STEP ** 2
+        sd = MAX_SCALE_SD if not curvature > 0 else min(1.0 / np.sqrt(curvature), MAX_SCALE_SD)
+        posterior._trade = ((means[2] - means[0]) / (2 * SCALE_STEP), float(sd))
+    return posterior._trade
 
 
 def scale_spread(posterior: ShapePosterior) -> np.ndarray:
@@ -811,8 +823,7 @@ def along_scale(solution: MixSolution, log_scale: float, slots: list[KeypointSlo
     from dataclasses import replace
 
     slope, _ = scale_trade(solution.posterior)
-    basis = solution.posterior.scale_solve[5]
-    shape = solution.shape + basis @ slope * log_scale
+    shape = solution.shape + solution.posterior.scale_solve.basis @ slope * log_scale
     scale = solution.scale * float(np.exp(log_scale))
     kp = shape.reshape(-1, 3)[point_indices]
     M, const = camera_rows(slots, view, kp)
@@ -897,12 +908,19 @@ def _map_coefficients(ams: np.ndarray, AB: np.ndarray, b: np.ndarray, lam: float
     h, curvature = (hi - lo) / 2.0, c0 - 2.0 * c1 + c2
     shift = np.where(curvature > 0, 0.5 * (c0 - c2) / np.where(curvature > 0, curvature, 1.0), 0.0)
     g = grid[rows, i] + np.clip(shift, -1.0, 1.0) * h
-    cv = coeffs(g[:, None])[:, 0]
-    r = g[:, None] * (ams + cv @ ABV.T) - b
+    cv, c, nle = _at_scales(g, ams, ABV, b, e, lam)
+    return cv @ V.T, g, c, nle, (V, e)
+
+
+def _at_scales(g: np.ndarray, ams: np.ndarray, ABV: np.ndarray, b: np.ndarray, e: np.ndarray,
+               lam: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(coefficients (T, q) in the singular basis, costs (T,), −log evidence (T,)) of each
+    centre's MAP shape at its image scale ``g`` (T,) (:func:`_map_coefficients`' notation)."""
+    gq = g[:, None]
+    cv = gq * (ABV.T @ b - gq * (ams @ ABV)) / (gq * gq * e + lam)
+    r = gq * (ams + cv @ ABV.T) - b
     c = np.einsum("tm,tm->t", r, r) + lam * np.einsum("tq,tq->t", cv, cv)
-    a = cv @ V.T
-    nle = c / (2 * lam) + 0.5 * np.sum(np.log1p(g[:, None] ** 2 * e / lam), axis=1)
-    return a, g, c, nle, (V, e)
+    return cv, c, c / (2 * lam) + 0.5 * np.sum(np.log1p(gq ** 2 * e / lam), axis=1)
 
 
 def _solve_working_set(basis: KeypointBasis, rows: np.ndarray, const: np.ndarray, b: np.ndarray,
