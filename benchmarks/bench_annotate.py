@@ -15,6 +15,11 @@ keypoint, the one the page asks for:
   drag the ghost there: one action either way);
 - a keypoint the hand marks lack (the annotator could not see it or was unsure): **H**, hidden.
 
+With ``--user ghosts`` the user fixes the ghosts first, as the page invites: once ghosts are drawn,
+while one of a keypoint they can see (one the hand marks have) lies more than ``--accept`` off its
+hand mark, they **drag** the one furthest off onto it (a person sees which sits furthest from its
+point). When every such ghost is within a click, they go on as above.
+
 Every action counts one, as an accepted ghost counts one key press. The user looks at each
 update: the next action waits for the full fit (the page's second update). When the page says
 the fit has settled, the user stops, as the page tells a real user they can (``--to-the-end``:
@@ -66,6 +71,7 @@ Definitions:
     python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
                                         [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
                                         [--oracle [--with-wheels | --with-outline]] [--facing] [--no-guided] [--to-the-end]
+                                        [--user asked|ghosts]
 
 Real photos are read where they are (``--data``, default ``../shared/realphotos``); a photo or
 folder that is missing is skipped with a note. Run it niced on a shared machine: the load
@@ -227,14 +233,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
                 actions += 1
             accept_px = args.accept * ref.length_px
             while state["ask"] and not (state["settled"] and not args.to_the_end):
-                asked = state["ask"][0]
-                ghost = state["fit"]["ghosts"].get(asked) if state["fit"]["ok"] else None
-                if asked not in hand:
-                    op, body = "hide", {"op": "hide", "name": asked}
-                elif ghost is not None and np.hypot(*np.subtract(ghost["uv"], hand[asked])) <= accept_px:
-                    op, body = "accept", {"op": "accept", "name": asked}
-                else:
-                    op, body = "click", {"op": "place", "name": asked, "uv": list(hand[asked])}
+                op, asked, body = next_action(state, hand, accept_px, args.user)
                 start = time.perf_counter()
                 state, ms = client.edit(**body)
                 actions += 1
@@ -278,9 +277,33 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
             "settled_d3_mm": settled and settled["d3_mm"], "settled_d2_px": settled and settled["d2_px"],
             "actions_to_end": actions, "accepted": sum(r["op"] == "accept" for r in rows),
             "stopped_settled": bool(rows and rows[-1]["settled"]), "same_when_stopped": bool(rows and rows[-1]["same"]),
-            "hidden": sum(r["op"] == "hide" for r in rows), "latency_ms": latencies, "quick_fit_cpu_ms": quick_cpu,
+            "hidden": sum(r["op"] == "hide" for r in rows), "dragged": sum(r["op"] == "drag" for r in rows),
+            "user": args.user, "latency_ms": latencies, "quick_fit_cpu_ms": quick_cpu,
             "quick_off_full_px": quick_off, "refined_s": refined_s, "server_cpu_ms": server_cpu,
             "rows": rows}
+
+
+def next_action(state: dict, hand: dict, accept_px: float, user: str) -> tuple[str, str, dict]:
+    """(op, keypoint, the edit's body): the simulated user's next action (module docstring).
+
+    ``user`` "asked": the keypoint the page asks for: accept its ghost if within ``accept_px`` of
+    the hand mark, else click the hand mark; H if the hand marks lack it. "ghosts": once the page
+    draws ghosts, first drag the ghost farthest from its hand mark there, while one is further
+    than ``accept_px``; then as "asked"."""
+    ghosts = state["fit"]["ghosts"] if state["fit"]["ok"] else {}
+    if user == "ghosts":
+        off = {n: float(np.hypot(*np.subtract(g["uv"], hand[n]))) for n, g in ghosts.items()
+               if n in hand and n not in state["marks"]}
+        worst = max(off, key=off.get, default=None)
+        if worst is not None and off[worst] > accept_px:
+            return "drag", worst, {"op": "place", "name": worst, "uv": list(hand[worst])}
+    asked = state["ask"][0]
+    ghost = ghosts.get(asked)
+    if asked not in hand:
+        return "hide", asked, {"op": "hide", "name": asked}
+    if ghost is not None and np.hypot(*np.subtract(ghost["uv"], hand[asked])) <= accept_px:
+        return "accept", asked, {"op": "accept", "name": asked}
+    return "click", asked, {"op": "place", "name": asked, "uv": list(hand[asked])}
 
 
 def same_from(rows: list[dict], key: str) -> int | None:
@@ -431,6 +454,9 @@ def main(argv=None) -> int:
     parser.add_argument("--facing", action="store_true",
                         help="also the annotators' share of marked keypoints by how squarely they face the camera")
     parser.add_argument("--no-guided", action="store_true", help="skip the guided sessions and the latencies")
+    parser.add_argument("--user", choices=("asked", "ghosts"), default="asked",
+                        help="the simulated user: marks what the page asks ('asked'), or first drags "
+                             "the ghost farthest off its point while one is off by more than a click ('ghosts')")
     parser.add_argument("--to-the-end", action="store_true",
                         help="the simulated user goes on past the page's 'settled' until nothing is asked")
     args = parser.parse_args(argv)
@@ -459,9 +485,10 @@ def main(argv=None) -> int:
     load_end = os.getloadavg()
 
     print(f"\nmachine: {os.cpu_count()} cores; load average {load[0]:.1f} at the start, {load_end[0]:.1f} at the end")
+    print(f"simulated user: {args.user}")
     if results:
         print("\n| photo | hand marks | view guessed → fitted (picked) | first fit at | same fit at | earlier rule "
-              "| first same | settled at (3D mm / photo px there) | actions in all (accepted, hidden) | the same fit then "
+              "| first same | settled at (3D mm / photo px there) | actions in all (accepted, hidden, dragged) | the same fit then "
               "| τ3 mm / τ2 px | re-markings the same, score / earlier rule |")
         print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in results:
@@ -473,7 +500,8 @@ def main(argv=None) -> int:
         picked = "" if r["view_picked_deg"] is None else f" (picked {r['view_picked_deg']:.0f}°)"
         print(f"| {r['photo']} | {r['hand']} | {r['view_guess_deg']:.0f}° → {r['view_fit_deg']:.0f}°{picked} | "
               f"{r['first_fit_at']} | {same} | {earlier} | {r['first_same_at']} | {settled} | "
-              f"{r['actions_to_end']} ({r['accepted']}, {r['hidden']}){' settled' if r['stopped_settled'] else ''} | "
+              f"{r['actions_to_end']} ({r['accepted']}, {r['hidden']}, {r['dragged']})"
+              f"{' settled' if r['stopped_settled'] else ''} | "
               f"{'yes' if r['same_when_stopped'] else 'no'} | {r['tau3_mm']:.0f} / {r['tau2_px']:.1f} | "
               f"{by_score} / {by_rule} of {draws} |")
     if oracles:

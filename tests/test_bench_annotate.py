@@ -41,3 +41,22 @@ def test_the_earlier_rule_fails_most_remarkings_whose_errors_trade_off():
 def test_same_from_is_the_first_action_that_stays_the_same_to_the_end(flags, at):
     rows = [{"action": i + 1, "same": bool(f)} for i, f in enumerate(flags)]
     assert ba.same_from(rows, "same") == at
+
+
+def test_the_ghost_user_drags_the_ghost_furthest_off_then_marks_what_is_asked():
+    hand = {"a": (0.0, 0.0), "b": (100.0, 0.0), "c": (0.0, 100.0)}
+    ghost = lambda u, v: {"uv": [u, v], "sd_px": 3.0}  # noqa: E731
+    state = {"ask": ["a", "d", "b"], "marks": {"c": [0.0, 100.0]},
+             "fit": {"ok": True, "ghosts": {"a": ghost(2.0, 0.0), "b": ghost(100.0, 9.0), "d": ghost(50.0, 50.0)}}}
+    assert ba.next_action(state, hand, 5.0, "ghosts") == ("drag", "b", {"op": "place", "name": "b", "uv": [100.0, 0.0]})
+    # the page's own order: the asked keypoint's ghost is within a click, so it is accepted
+    assert ba.next_action(state, hand, 5.0, "asked")[:2] == ("accept", "a")
+    # every ghost within a click: as asked; a keypoint the hand marks lack is hidden
+    state["fit"]["ghosts"]["b"] = ghost(100.0, 4.0)
+    assert ba.next_action(state, hand, 5.0, "ghosts")[:2] == ("accept", "a")
+    state["ask"] = ["d", "b"]
+    assert ba.next_action(state, hand, 5.0, "ghosts")[:2] == ("hide", "d")
+    # before the first fit there are no ghosts: the asked keypoint is clicked
+    state["fit"] = {"ok": False, "ghosts": {}}
+    state["ask"] = ["b"]
+    assert ba.next_action(state, hand, 5.0, "ghosts") == ("click", "b", {"op": "place", "name": "b", "uv": [100.0, 0.0]})

@@ -88,6 +88,17 @@ class Page:
         actions.perform()
         return self.settled(revision + 1) if edits else self.state
 
+    def hover(self, u: float, v: float) -> str | None:
+        """Move the pointer over photo pixel (u, v), no button down; the name the page shows there
+        (the mark or ghost under the pointer), or None."""
+        from selenium.webdriver.common.actions.action_builder import ActionBuilder
+
+        x, y = self.client_xy(u, v)
+        actions = ActionBuilder(self.driver)
+        actions.pointer_action.move_to_location(x, y)
+        actions.perform()
+        return self.js("return window.carbody.hover")
+
     def drag(self, from_uv: tuple[float, float], to_uv: tuple[float, float], steps: int = 8) -> dict:
         """Press at photo pixel ``from_uv``, move to ``to_uv`` and let go."""
         from selenium.webdriver.common.actions.action_builder import ActionBuilder

@@ -10,6 +10,7 @@ const MIN_GHOST_R = 5;     // screen px
 const app = {
   setup: null, state: null, photo: new Image(), current: null,
   view: { scale: 1, ox: 0, oy: 0 }, press: null, pointer: null,
+  hover: null,             // the mark or ghost under the pointer (its name shows)
   latencies: [],           // {revision, ms, kind: "quick" | "refined"}: click to drawn
   pending: 0, ready: false,
 };
@@ -180,7 +181,14 @@ canvas.addEventListener("mousedown", (e) => {
 
 window.addEventListener("mousemove", (e) => {
   const p = app.press;
-  if (!p) return;
+  if (!p) {                                      // no button down: name what is under the pointer
+    if (!app.state) return;
+    const xy = eventXY(e), r = canvas.getBoundingClientRect();
+    const onPhoto = xy[0] >= 0 && xy[1] >= 0 && xy[0] <= r.width && xy[1] <= r.height;
+    const over = onPhoto ? hit(xy) : null, name = over ? over.name : null;
+    if (name !== app.hover) { app.hover = name; render(); }
+    return;
+  }
   const xy = eventXY(e);
   if (Math.hypot(xy[0] - p.xy[0], xy[1] - p.xy[1]) > DRAG_PX) p.moved = true;
   p.at = xy;
@@ -311,7 +319,8 @@ function drawGhost(name, g) {
   ctx.setLineDash([]);
   ctx.fillStyle = ctx.strokeStyle;
   ctx.beginPath(); ctx.arc(p[0], p[1], 2, 0, 2 * Math.PI); ctx.fill();
-  if (current || app.view.scale > 1.2) text(label(name) + (current ? "  ⏎ accept" : ""), p[0] + r + 3, p[1] - 3, ctx.strokeStyle);
+  if (current || name === app.hover || app.view.scale > 1.2)
+    text(label(name) + (current ? "  ⏎ accept" : ""), p[0] + r + 3, p[1] - 3, ctx.strokeStyle);
 }
 
 function drawMark(name, uv, info) {
@@ -418,7 +427,8 @@ function renderSide() {
   else if (c && fit.ok && fit.ghosts[c]) {
     const g = fit.ghosts[c];
     hint = `click it on the photo, or Enter to accept the ghost (±${g.sd_px.toFixed(0)} px), or drag the ghost; ` +
-      "H if the photo does not show it";
+      "H if the photo does not show it. Any other ghost off its point: drag it there, the furthest off first " +
+      "(a ghost's name shows under the pointer)";
   }
   else if (c) hint = "click it on the photo, H if the photo does not show it";
   $("ask-hint").textContent = hint;
