@@ -18,7 +18,11 @@ keypoint, the one the page asks for:
 With ``--user ghosts`` the user fixes the ghosts first, as the page invites: once ghosts are drawn,
 while one of a keypoint they can see (one the hand marks have) lies more than ``--accept`` off its
 hand mark, they **drag** the one furthest off onto it (a person sees which sits furthest from its
-point). When every such ghost is within a click, they go on as above.
+point). When every such ghost is within a click, they go on as above. The **ghosts-any** user
+(``--user ghosts-any --seed N``) drags any ghost more than ``--accept`` off, picked at random:
+a person who does not judge which is furthest. With ``--notice F`` it picks only among the ghosts
+at least F times as far off as the furthest: a person who sees which are badly off, not which
+is worst.
 
 Every action counts one, as an accepted ghost counts one key press. The user looks at each
 update: the next action waits for the full fit (the page's second update). When the page says
@@ -232,8 +236,9 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
                 state, _ = client.edit(op="view", azimuth=picked)
                 actions += 1
             accept_px = args.accept * ref.length_px
+            pick = np.random.default_rng(args.seed)
             while state["ask"] and not (state["settled"] and not args.to_the_end):
-                op, asked, body = next_action(state, hand, accept_px, args.user)
+                op, asked, body = next_action(state, hand, accept_px, args.user, pick, args.notice)
                 start = time.perf_counter()
                 state, ms = client.edit(**body)
                 actions += 1
@@ -283,19 +288,23 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
             "rows": rows}
 
 
-def next_action(state: dict, hand: dict, accept_px: float, user: str) -> tuple[str, str, dict]:
+def next_action(state: dict, hand: dict, accept_px: float, user: str,
+                rng: np.random.Generator | None = None, notice: float = 0.0) -> tuple[str, str, dict]:
     """(op, keypoint, the edit's body): the simulated user's next action (module docstring).
 
     ``user`` "asked": the keypoint the page asks for: accept its ghost if within ``accept_px`` of
     the hand mark, else click the hand mark; H if the hand marks lack it. "ghosts": once the page
     draws ghosts, first drag the ghost farthest from its hand mark there, while one is further
-    than ``accept_px``; then as "asked"."""
+    than ``accept_px``; then as "asked". "ghosts-any": as "ghosts", but any of the ghosts further
+    off than ``accept_px`` and at least ``notice`` times as far off as the furthest, picked at
+    random (``rng``)."""
     ghosts = state["fit"]["ghosts"] if state["fit"]["ok"] else {}
-    if user == "ghosts":
+    if user in ("ghosts", "ghosts-any"):
         off = {n: float(np.hypot(*np.subtract(g["uv"], hand[n]))) for n, g in ghosts.items()
-               if n in hand and n not in state["marks"]}
-        worst = max(off, key=off.get, default=None)
-        if worst is not None and off[worst] > accept_px:
+               if n in hand and n not in state["marks"] and np.hypot(*np.subtract(g["uv"], hand[n])) > accept_px}
+        if off:
+            names = sorted(n for n in off if off[n] >= notice * max(off.values()))
+            worst = max(off, key=off.get) if user == "ghosts" else names[int(rng.integers(len(names)))]
             return "drag", worst, {"op": "place", "name": worst, "uv": list(hand[worst])}
     asked = state["ask"][0]
     ghost = ghosts.get(asked)
@@ -454,9 +463,14 @@ def main(argv=None) -> int:
     parser.add_argument("--facing", action="store_true",
                         help="also the annotators' share of marked keypoints by how squarely they face the camera")
     parser.add_argument("--no-guided", action="store_true", help="skip the guided sessions and the latencies")
-    parser.add_argument("--user", choices=("asked", "ghosts"), default="asked",
+    parser.add_argument("--user", choices=("asked", "ghosts", "ghosts-any"), default="asked",
                         help="the simulated user: marks what the page asks ('asked'), or first drags "
-                             "the ghost farthest off its point while one is off by more than a click ('ghosts')")
+                             "the ghost farthest off its point while one is off by more than a click ('ghosts'), "
+                             "or any ghost off by more than a click, at random ('ghosts-any')")
+    parser.add_argument("--seed", type=int, default=0, help="the 'ghosts-any' user's random picks")
+    parser.add_argument("--notice", type=float, default=0.0,
+                        help="the 'ghosts-any' user picks among the ghosts at least this share as far off as "
+                             "the furthest (0: any ghost off by more than a click)")
     parser.add_argument("--to-the-end", action="store_true",
                         help="the simulated user goes on past the page's 'settled' until nothing is asked")
     args = parser.parse_args(argv)
@@ -485,7 +499,7 @@ def main(argv=None) -> int:
     load_end = os.getloadavg()
 
     print(f"\nmachine: {os.cpu_count()} cores; load average {load[0]:.1f} at the start, {load_end[0]:.1f} at the end")
-    print(f"simulated user: {args.user}")
+    print(f"simulated user: {args.user}" + (f", seed {args.seed}, notice {args.notice}" if args.user == "ghosts-any" else ""))
     if results:
         print("\n| photo | hand marks | view guessed → fitted (picked) | first fit at | same fit at | earlier rule "
               "| first same | settled at (3D mm / photo px there) | actions in all (accepted, hidden, dragged) | the same fit then "

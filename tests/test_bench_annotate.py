@@ -60,3 +60,15 @@ def test_the_ghost_user_drags_the_ghost_furthest_off_then_marks_what_is_asked():
     state["fit"] = {"ok": False, "ghosts": {}}
     state["ask"] = ["b"]
     assert ba.next_action(state, hand, 5.0, "ghosts") == ("click", "b", {"op": "place", "name": "b", "uv": [100.0, 0.0]})
+
+
+def test_the_ghosts_any_user_drags_one_of_the_ghosts_off_by_more_than_a_click():
+    hand = {"a": (0.0, 0.0), "b": (100.0, 0.0), "c": (0.0, 100.0)}
+    state = {"ask": ["a"], "marks": {},
+             "fit": {"ok": True, "ghosts": {"a": {"uv": [2.0, 0.0]}, "b": {"uv": [100.0, 9.0]}, "c": {"uv": [0.0, 130.0]}}}}
+    rng = np.random.default_rng(0)
+    picks = {ba.next_action(state, hand, 5.0, "ghosts-any", rng)[1] for _ in range(40)}
+    assert picks == {"b", "c"}                    # never "a": its ghost is within a click
+    # noticing only the badly off: "c" (30 px) is, "b" (9 px) is not half as far off
+    picks = {ba.next_action(state, hand, 5.0, "ghosts-any", rng, notice=0.5)[1] for _ in range(20)}
+    assert picks == {"c"}
