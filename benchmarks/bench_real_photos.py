@@ -73,6 +73,16 @@ Definitions (per photo):
   tyre, whose top the fender hides, so its centroid lies somewhat below the hub. How far: the
   centroids' mean distance from the hubs the fit found in the photo and trusted (weight over
   0.6), % of S — the measure's own error, independent of the fit's wheel centres.
+- **Wheel centres, like for like** (:func:`visible_tyre_centres`): the polygon is the tyre the
+  photo shows, so its centroid is set against the centroid of the tyre our fitted car shows.
+  Each wheel is a tyre cylinder on the fitted hub, its radius ``wheel_tyre_share`` of the arch's
+  (the hub search's), its width :data:`TYRE_WIDTH_SHARE` of that, its outer face at the arch
+  top's x. The fitted body (``body.step``, tessellated) and the four tyres are drawn in the
+  fitted camera, far triangles first (painter's order by the triangle centroid's distance from
+  the camera), each pixel keeping the nearest one's owner. The photo's figure is the mean
+  distance of each annotated wheel's centroid from its matched tyre's visible centroid (the same
+  matching), % of S. Its own error: the same with our visible tyre moved onto the hub the fit
+  found and trusted (the centroid less our tyre's offset from its hub, against that hub).
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); on three-quarter views (the estimate 15–75° from both ends),
   the **lean**: how much nearer the car's end (−) or side (+) the view found is than the
@@ -375,6 +385,106 @@ def annotated_wheel_centres(photo: Photo) -> np.ndarray:
     return np.array([(c.x, c.y) for c in cs if not c.is_empty]).reshape(-1, 2)
 
 
+#: A tyre's width over its radius (a 205/55 R16 tyre: 205 mm wide, 316 mm in radius).
+TYRE_WIDTH_SHARE = 0.65
+
+#: Segments round a drawn tyre.
+TYRE_SEGMENTS = 36
+
+
+def tyre_triangles(control_points: np.ndarray) -> list[np.ndarray]:
+    """[(m, 3, 3) mm] the four tyres' triangles (tread and both faces), in the order of
+    :func:`projected_wheel_centres` (module doc: wheel centres, like for like)."""
+    from carbody.policy import FitPolicy
+    from carbody.topology import load_topology
+    from carbody.wireframe import wheel_centre
+
+    topo = load_topology()
+    t = np.linspace(0.0, 2.0 * np.pi, TYRE_SEGMENTS, endpoint=False)
+    nxt = np.roll(np.arange(TYRE_SEGMENTS), -1)
+    tyres = []
+    for side in ("front", "rear"):
+        top = control_points[topo.junction_point_index(f"{side}_arch_top")]
+        y, z = wheel_centre(control_points, topo, side)
+        radius = FitPolicy().wheel_tyre_share * (top[2] - z)
+        for sign in (1.0, -1.0):
+            outer_x, inner_x = sign * abs(top[0]), sign * (abs(top[0]) - TYRE_WIDTH_SHARE * radius)
+            ring = lambda x: np.stack([np.full_like(t, x), y + radius * np.cos(t), z + radius * np.sin(t)], 1)  # noqa: E731
+            o, i = ring(outer_x), ring(inner_x)
+            centre_o, centre_i = (np.broadcast_to([x, y, z], o.shape) for x in (outer_x, inner_x))
+            tyres.append(np.concatenate([np.stack([o, o[nxt], i[nxt]], 1), np.stack([o, i[nxt], i], 1),
+                                         np.stack([centre_o, o, o[nxt]], 1), np.stack([centre_i, i, i[nxt]], 1)]))
+    return tyres
+
+
+def owner_image(camera: dict, layers: list[np.ndarray], shape: tuple[int, int]) -> np.ndarray:
+    """(h, w) int: at each photo pixel the index in ``layers`` [(m, 3, 3) mm triangles] of the
+    nearest one drawn there, −1 where none is: painter's order, far triangles first."""
+    import cv2
+
+    from carbody.camera import View, view_rotation
+    from carbody.fit.report import project_with_camera
+
+    view = View(camera["azimuth_deg"], camera["elevation_deg"], camera["roll_deg"], camera["distance_mm"],
+                tuple(camera["aim_mm"]))
+    toward = view_rotation(view)[0]
+    tris = np.concatenate(layers)
+    owner = np.concatenate([np.full(len(t), k) for k, t in enumerate(layers)])
+    centres = tris.mean(axis=1)
+    if view.distance is None:
+        nearness = centres @ toward
+    else:
+        nearness = -np.linalg.norm(centres - (np.asarray(view.aim) + view.distance * toward), axis=1)
+    uv = project_with_camera(camera, tris.reshape(-1, 3)).reshape(-1, 3, 2)
+    image = np.full(shape, -1, dtype=np.int16)
+    for j in np.argsort(nearness, kind="stable"):
+        if np.all(np.isfinite(uv[j])):
+            cv2.fillConvexPoly(image, np.round(uv[j] * 4).astype(np.int32), int(owner[j]), cv2.LINE_8, 2)
+    return image
+
+
+def visible_tyre_centres(camera: dict, control_points: np.ndarray, body_step: Path,
+                         shape: tuple[int, int]) -> np.ndarray:
+    """(4, 2) px: the centroid of each tyre our fitted car shows in the photo (NaN where none is
+    seen), in the order of :func:`projected_wheel_centres` (module doc)."""
+    from carbody.occ.step_body import read_body_step
+    from carbody.render.mesh import tessellate
+
+    body = np.concatenate([m.vertices[m.triangles] for m in tessellate(read_body_step(body_step).shape)])
+    image = owner_image(camera, [body, *tyre_triangles(control_points)], shape)
+    centres = np.full((4, 2), np.nan)
+    for k in range(4):
+        v, u = np.nonzero(image == k + 1)
+        if len(u):
+            centres[k] = u.mean(), v.mean()
+    return centres
+
+
+def tyres_like_for_like(photo: Photo, camera: dict, control_points: np.ndarray, folder: Path,
+                        wheels: dict | None) -> tuple[float | None, float | None]:
+    """(mean distance px of the annotated wheels' centroids from their matched tyres' visible
+    centroids, the same with our tyres moved onto the hubs the fit found and trusted —the
+    measure's own error—): None where not measured (module doc)."""
+    from carbody.fit.wheels import WHEELS
+
+    annotated = annotated_wheel_centres(photo)
+    if not len(annotated) or not (folder / "body.step").is_file():
+        return None, None
+    import cv2
+
+    h, w = cv2.imread(str(photo.image), cv2.IMREAD_GRAYSCALE).shape
+    hubs = projected_wheel_centres(camera, control_points)
+    seen = visible_tyre_centres(camera, control_points, folder / "body.step", (h, w))
+    seen = np.where(np.isfinite(seen), seen, hubs)  # a tyre the car hides: its hub
+    found = {x["wheel"]: np.array(x["found_px"]) for x in (wheels or {}).get("wheels", [])
+             if x["weight"] > SURE_HUB_WEIGHT}
+    pairs = wheel_matches(annotated, hubs)
+    distance = float(np.mean([np.linalg.norm(annotated[i] - seen[j]) for i, j, _ in pairs]))
+    own = [float(np.linalg.norm(annotated[i] - (seen[j] - hubs[j]) - found[WHEELS[j]]))
+           for i, j, _ in pairs if WHEELS[j] in found]
+    return distance, (float(np.mean(own)) if own else None)
+
+
 def camera_check_px(report: dict, marks: dict[str, list[float]]) -> float | None:
     """|mean distance of the kept marks from their reprojection by ``project_with_camera`` −
     the report's ``residual_px_mean``| px, or None if no mark can be reprojected here."""
@@ -436,6 +546,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "wheelbase_err_pct": None, "wheelbase_spread_pct": None,
            "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
            "hood": None, "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
+           "tyre_dist_pct": None, "tyre_own_pct": None,
            "rims_view_deg": None, "rims": None, "rims_lean_deg": None, "rims_diff_deg": None,
            "fit_rims_diff_deg": None,
            "fallback": None, "camera_check_px": None,
@@ -470,6 +581,9 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
         row["wheel_dv_pct"] = 100.0 * dv_px / size
         hub_px = centroid_to_hub_px(photo, camera, cp, fit.get("wheels"))
         row["centroid_to_hub_pct"] = None if hub_px is None else 100.0 * hub_px / size
+        tyre_px, own_px = tyres_like_for_like(photo, camera, cp, folder, fit.get("wheels"))
+        row["tyre_dist_pct"] = None if tyre_px is None else 100.0 * tyre_px / size
+        row["tyre_own_pct"] = None if own_px is None else 100.0 * own_px / size
     row["rims"] = rims_view(photo.image, camera, cp, fit.get("wheels"))
     if row["rims"]:
         row["rims_view_deg"] = float(np.mean([found + angular_offset(a, found) for a in row["rims"].values()])) % 360.0
@@ -708,7 +822,7 @@ def fmt(v, spec: str = ".0f", signed: bool = False) -> str:
 
 def photo_table(rows: list[dict]) -> str:
     head = ("| photo | outcome | time s (CPU) | view found / estimate (Δ) ° | rims ° | residual % | length % | width % | "
-            "wheelbase % | IoU windshield | IoU rear window | IoU hood | wheel centres % (n) | fallback |")
+            "wheelbase % | IoU windshield | IoU rear window | IoU hood | wheel centres % (n) | like for like % | fallback |")
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
     for r in rows:
         view = (f"{r['view_found_deg']:.0f} / {r['view_estimate_deg']} ({r['view_diff_deg']:.0f})"
@@ -720,7 +834,7 @@ def photo_table(rows: list[dict]) -> str:
                      f"{fmt(r['residual_pct'], '.1f')} | {fmt(r['length_err_pct'], signed=True)} | "
                      f"{fmt(r['width_err_pct'], signed=True)} | {fmt(r['wheelbase_err_pct'], signed=True)} | "
                      + " | ".join(fmt(r["iou"][k], ".2f") for k, _ in REGION_PARTS)
-                     + f" | {wheel} | {fb} |")
+                     + f" | {wheel} | {fmt(r.get('tyre_dist_pct'), '.1f')} | {fb} |")
     return "\n".join(lines)
 
 
@@ -811,6 +925,10 @@ def summarise(rows: list[dict]) -> dict:
         "wheel_dist_measured": sum(r["wheel_dist_pct"] is not None for r in rows),
         "median_wheel_dv_pct": median_or_none(r["wheel_dv_pct"] for r in rows),
         "median_centroid_to_hub_pct": median_or_none(r["centroid_to_hub_pct"] for r in rows),
+        "median_tyre_dist_pct": median_or_none(r.get("tyre_dist_pct") for r in rows),
+        "tyre_dist_measured": sum(r.get("tyre_dist_pct") is not None for r in rows),
+        "median_tyre_own_pct": median_or_none(r.get("tyre_own_pct") for r in rows),
+        "tyre_own_measured": sum(r.get("tyre_own_pct") is not None for r in rows),
         "centroid_to_hub_measured": sum(r["centroid_to_hub_pct"] is not None for r in rows),
         "photos_with_hubs": sum(bool(r["hubs_found"]) for r in rows),
         "hubs_found": sum(r["hubs_found"] or 0 for r in rows),
@@ -896,6 +1014,11 @@ def summary_table(s: dict) -> str:
              f"| the measure's own error: median distance of the annotated wheels' centroids from the hubs "
              f"the fit found, % | {fmt(s['median_centroid_to_hub_pct'], '.1f') or '–'} "
              f"(of {s['centroid_to_hub_measured']}) |",
+             f"| like for like: median distance of the annotated wheels' centroids from those of the tyres our car "
+             f"shows (fitted body and tyres drawn in the fitted camera), % | "
+             f"{fmt(s.get('median_tyre_dist_pct'), '.1f') or '–'} (of {s.get('tyre_dist_measured', 0)}) |",
+             f"| its own error: the same with our tyres on the hubs the fit found, % | "
+             f"{fmt(s.get('median_tyre_own_pct'), '.1f') or '–'} (of {s.get('tyre_own_measured', 0)}) |",
              f"| photos with hubs found in them (hubs in all) | {s['photos_with_hubs']} ({s['hubs_found']}) |",
              f"| time per photo (wall), median / max | {fmt(s['median_time_s'], '.1f')} / "
              f"{fmt(s['max_time_s'], '.1f')} s |",

@@ -94,6 +94,32 @@ def test_a_hood_drawn_forward_of_ours_reads_as_ours_lying_back(bench, templates,
     assert bench.hood_offset(bench.Photo("no_hood", tmp_path / "x.jpg", tmp_path / "x.json", {}, {}), camera, cp) is None
 
 
+def test_the_nearer_triangle_owns_the_pixel_whichever_is_listed_first(bench):
+    camera = {"azimuth_deg": 90.0, "elevation_deg": 0.0, "roll_deg": 0.0, "distance_mm": 5000.0,
+              "aim_mm": [0.0, 0.0, 0.0], "scale_px_per_mm": 0.1, "offset_px": [100.0, 100.0], "to_photo": None}
+
+    def square(x: float) -> np.ndarray:  # at x (the camera at +x), 400 mm across
+        c = np.array([[x, -200, -200], [x, 200, -200], [x, 200, 200], [x, -200, 200]], dtype=float)
+        return np.stack([c[[0, 1, 2]], c[[0, 2, 3]]])
+
+    for layers, near in (([square(0.0), square(300.0)], 1), ([square(300.0), square(0.0)], 0)):
+        image = bench.owner_image(camera, layers, (200, 200))
+        assert image[100, 100] == near and image[5, 5] == -1
+
+
+def test_the_tyres_are_cylinders_on_the_fitted_hubs(bench, templates):
+    from carbody.fit.report import project_with_camera
+
+    cp = templates[0][1].control_points
+    camera = {"azimuth_deg": 90.0, "elevation_deg": 0.0, "roll_deg": 0.0, "distance_mm": None,
+              "aim_mm": [0.0, 0.0, 0.0], "scale_px_per_mm": 0.1, "offset_px": [500.0, 500.0], "to_photo": None}
+    hubs = bench.projected_wheel_centres(camera, cp)
+    for tyre, hub in zip(bench.tyre_triangles(cp), hubs):
+        uv = project_with_camera(camera, tyre.reshape(-1, 3))
+        assert np.allclose((uv.min(axis=0) + uv.max(axis=0)) / 2, hub, atol=0.5)  # round the hub, seen side on
+        assert 25.0 < np.ptp(uv[:, 1]) / 2 < 40.0                                   # a tyre's radius, 250–400 mm
+
+
 def test_a_rear_wheels_rim_reads_the_view_the_example_was_rendered_at(bench, example_reconstruction):
     """The example was rendered at 30°: its rear wheel's rim, read from views 5° and 10° off
     the one found (the hub kept where it was found), comes back to 30°; and a view turned by
@@ -164,6 +190,8 @@ def test_metrics_are_finite_where_defined(bench_run):
             assert iou is None or 0.0 <= iou <= 1.0
         assert (r["wheel_dist_pct"] is None) == (r["wheels_annotated"] == 0)
         assert r["wheel_dist_pct"] is None or math.isfinite(r["wheel_dist_pct"])
+        assert (r["tyre_dist_pct"] is None) == (r["wheels_annotated"] == 0)
+        assert r["tyre_dist_pct"] is None or 0.0 <= r["tyre_dist_pct"] < 100.0
         # the instrument projects with the fit's own camera: the marks land where the fit says
         assert r["camera_check_px"] < 0.05
         # the rims' view only from rear wheels the fit found and trusted
