@@ -409,8 +409,8 @@ def tyre_triangles(control_points: np.ndarray) -> list[np.ndarray]:
         radius = FitPolicy().wheel_tyre_share * (top[2] - z)
         for sign in (1.0, -1.0):
             outer_x, inner_x = sign * abs(top[0]), sign * (abs(top[0]) - TYRE_WIDTH_SHARE * radius)
-            ring = lambda x: np.stack([np.full_like(t, x), y + radius * np.cos(t), z + radius * np.sin(t)], 1)  # noqa: E731
-            o, i = ring(outer_x), ring(inner_x)
+            o, i = (np.stack([np.full_like(t, x), y + radius * np.cos(t), z + radius * np.sin(t)], 1)
+                    for x in (outer_x, inner_x))
             centre_o, centre_i = (np.broadcast_to([x, y, z], o.shape) for x in (outer_x, inner_x))
             tyres.append(np.concatenate([np.stack([o, o[nxt], i[nxt]], 1), np.stack([o, i[nxt], i], 1),
                                          np.stack([centre_o, o, o[nxt]], 1), np.stack([centre_i, i, i[nxt]], 1)]))
