@@ -18,7 +18,8 @@ keypoint, the one the page asks for:
 With ``--user ghosts`` the user fixes the ghosts first, as the page invites: once ghosts are drawn,
 while one of a keypoint they can see (one the hand marks have) lies more than ``--accept`` off its
 hand mark, they **drag** the one furthest off onto it (a person sees which sits furthest from its
-point). When every such ghost is within a click, they go on as above. The **ghosts-any** user
+point). When every such ghost is within a click, they stop: the fit sits on every point they
+can see, and accepting a ghost where it is teaches the fit nothing. The **ghosts-any** user
 (``--user ghosts-any --seed N``) drags any ghost more than ``--accept`` off, picked at random:
 a person who does not judge which is furthest. With ``--notice F`` it picks only among the ghosts
 at least F times as far off as the furthest: a person who sees which are badly off, not which
@@ -236,9 +237,13 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
                 state, _ = client.edit(op="view", azimuth=picked)
                 actions += 1
             accept_px = args.accept * ref.length_px
+            stopped_on_ghosts = False
             pick = np.random.default_rng(args.seed)
             while state["ask"] and not (state["settled"] and not args.to_the_end):
                 op, asked, body = next_action(state, hand, accept_px, args.user, pick, args.notice)
+                if op == "stop":
+                    stopped_on_ghosts = True
+                    break
                 start = time.perf_counter()
                 state, ms = client.edit(**body)
                 actions += 1
@@ -281,7 +286,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
             "settled_at": settled and settled["action"], "first_fit_at": first_fit,
             "settled_d3_mm": settled and settled["d3_mm"], "settled_d2_px": settled and settled["d2_px"],
             "actions_to_end": actions, "accepted": sum(r["op"] == "accept" for r in rows),
-            "stopped_settled": bool(rows and rows[-1]["settled"]), "same_when_stopped": bool(rows and rows[-1]["same"]),
+            "stopped_settled": bool(rows and rows[-1]["settled"]), "stopped_on_ghosts": stopped_on_ghosts, "same_when_stopped": bool(rows and rows[-1]["same"]),
             "hidden": sum(r["op"] == "hide" for r in rows), "dragged": sum(r["op"] == "drag" for r in rows),
             "user": args.user, "latency_ms": latencies, "quick_fit_cpu_ms": quick_cpu,
             "quick_off_full_px": quick_off, "refined_s": refined_s, "server_cpu_ms": server_cpu,
@@ -295,9 +300,9 @@ def next_action(state: dict, hand: dict, accept_px: float, user: str,
     ``user`` "asked": the keypoint the page asks for: accept its ghost if within ``accept_px`` of
     the hand mark, else click the hand mark; H if the hand marks lack it. "ghosts": once the page
     draws ghosts, first drag the ghost farthest from its hand mark there, while one is further
-    than ``accept_px``; then as "asked". "ghosts-any": as "ghosts", but any of the ghosts further
-    off than ``accept_px`` and at least ``notice`` times as far off as the furthest, picked at
-    random (``rng``)."""
+    than ``accept_px``; then it stops ("stop", None, None): every ghost sits on its point. "ghosts-any":
+    as "ghosts", but any of the ghosts further off than ``accept_px`` and at least ``notice``
+    times as far off as the furthest, picked at random (``rng``)."""
     ghosts = state["fit"]["ghosts"] if state["fit"]["ok"] else {}
     if user in ("ghosts", "ghosts-any"):
         off = {n: float(np.hypot(*np.subtract(g["uv"], hand[n]))) for n, g in ghosts.items()
@@ -306,6 +311,8 @@ def next_action(state: dict, hand: dict, accept_px: float, user: str,
             names = sorted(n for n in off if off[n] >= notice * max(off.values()))
             worst = max(off, key=off.get) if user == "ghosts" else names[int(rng.integers(len(names)))]
             return "drag", worst, {"op": "place", "name": worst, "uv": list(hand[worst])}
+        if ghosts:
+            return "stop", None, None
     asked = state["ask"][0]
     ghost = ghosts.get(asked)
     if asked not in hand:
@@ -515,7 +522,7 @@ def main(argv=None) -> int:
         print(f"| {r['photo']} | {r['hand']} | {r['view_guess_deg']:.0f}° → {r['view_fit_deg']:.0f}°{picked} | "
               f"{r['first_fit_at']} | {same} | {earlier} | {r['first_same_at']} | {settled} | "
               f"{r['actions_to_end']} ({r['accepted']}, {r['hidden']}, {r['dragged']})"
-              f"{' settled' if r['stopped_settled'] else ''} | "
+              f"{' settled' if r['stopped_settled'] else ' no ghost off' if r.get('stopped_on_ghosts') else ''} | "
               f"{'yes' if r['same_when_stopped'] else 'no'} | {r['tau3_mm']:.0f} / {r['tau2_px']:.1f} | "
               f"{by_score} / {by_rule} of {draws} |")
     if oracles:

@@ -43,7 +43,7 @@ def test_same_from_is_the_first_action_that_stays_the_same_to_the_end(flags, at)
     assert ba.same_from(rows, "same") == at
 
 
-def test_the_ghost_user_drags_the_ghost_furthest_off_then_marks_what_is_asked():
+def test_the_ghost_user_drags_the_ghost_furthest_off_and_stops_when_none_is_off():
     hand = {"a": (0.0, 0.0), "b": (100.0, 0.0), "c": (0.0, 100.0)}
     ghost = lambda u, v: {"uv": [u, v], "sd_px": 3.0}  # noqa: E731
     state = {"ask": ["a", "d", "b"], "marks": {"c": [0.0, 100.0]},
@@ -51,11 +51,13 @@ def test_the_ghost_user_drags_the_ghost_furthest_off_then_marks_what_is_asked():
     assert ba.next_action(state, hand, 5.0, "ghosts") == ("drag", "b", {"op": "place", "name": "b", "uv": [100.0, 0.0]})
     # the page's own order: the asked keypoint's ghost is within a click, so it is accepted
     assert ba.next_action(state, hand, 5.0, "asked")[:2] == ("accept", "a")
-    # every ghost within a click: as asked; a keypoint the hand marks lack is hidden
+    # every ghost within a click: the ghosts user stops; the asked user accepts, and hides a
+    # keypoint the hand marks lack
     state["fit"]["ghosts"]["b"] = ghost(100.0, 4.0)
-    assert ba.next_action(state, hand, 5.0, "ghosts")[:2] == ("accept", "a")
+    assert ba.next_action(state, hand, 5.0, "ghosts") == ("stop", None, None)
+    assert ba.next_action(state, hand, 5.0, "asked")[:2] == ("accept", "a")
     state["ask"] = ["d", "b"]
-    assert ba.next_action(state, hand, 5.0, "ghosts")[:2] == ("hide", "d")
+    assert ba.next_action(state, hand, 5.0, "asked")[:2] == ("hide", "d")
     # before the first fit there are no ghosts: the asked keypoint is clicked
     state["fit"] = {"ok": False, "ghosts": {}}
     state["ask"] = ["b"]
