@@ -428,7 +428,7 @@ function renderSide() {
     const g = fit.ghosts[c];
     hint = `click it on the photo, or Enter to accept the ghost (±${g.sd_px.toFixed(0)} px), or drag the ghost; ` +
       "H if the photo does not show it. Any other ghost off its point: drag it there, the furthest off first " +
-      "(a ghost's name shows under the pointer)";
+      "(a ghost's name shows under the pointer). When no ghost is off its point, Save";
   }
   else if (c) hint = "click it on the photo, H if the photo does not show it";
   $("ask-hint").textContent = hint;
