@@ -76,7 +76,7 @@ Definitions:
     python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
                                         [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
                                         [--oracle [--with-wheels | --with-outline]] [--facing] [--no-guided] [--to-the-end]
-                                        [--user asked|ghosts]
+                                        [--user asked|ghosts|ghosts-any [--notice F] [--seed N]]
 
 Real photos are read where they are (``--data``, default ``../shared/realphotos``); a photo or
 folder that is missing is skipped with a note. Run it niced on a shared machine: the load
@@ -286,7 +286,8 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
             "settled_at": settled and settled["action"], "first_fit_at": first_fit,
             "settled_d3_mm": settled and settled["d3_mm"], "settled_d2_px": settled and settled["d2_px"],
             "actions_to_end": actions, "accepted": sum(r["op"] == "accept" for r in rows),
-            "stopped_settled": bool(rows and rows[-1]["settled"]), "stopped_on_ghosts": stopped_on_ghosts, "same_when_stopped": bool(rows and rows[-1]["same"]),
+            "stopped_settled": bool(rows and rows[-1]["settled"]), "stopped_on_ghosts": stopped_on_ghosts,
+            "same_when_stopped": bool(rows and rows[-1]["same"]),
             "hidden": sum(r["op"] == "hide" for r in rows), "dragged": sum(r["op"] == "drag" for r in rows),
             "user": args.user, "latency_ms": latencies, "quick_fit_cpu_ms": quick_cpu,
             "quick_off_full_px": quick_off, "refined_s": refined_s, "server_cpu_ms": server_cpu,
@@ -299,14 +300,15 @@ def next_action(state: dict, hand: dict, accept_px: float, user: str,
 
     ``user`` "asked": the keypoint the page asks for: accept its ghost if within ``accept_px`` of
     the hand mark, else click the hand mark; H if the hand marks lack it. "ghosts": once the page
-    draws ghosts, first drag the ghost farthest from its hand mark there, while one is further
-    than ``accept_px``; then it stops ("stop", None, None): every ghost sits on its point. "ghosts-any":
+    draws ghosts, drag the ghost farthest from its hand mark there, while one is further than
+    ``accept_px``; then stop (("stop", None, None): every ghost sits on its point). "ghosts-any":
     as "ghosts", but any of the ghosts further off than ``accept_px`` and at least ``notice``
     times as far off as the furthest, picked at random (``rng``)."""
     ghosts = state["fit"]["ghosts"] if state["fit"]["ok"] else {}
     if user in ("ghosts", "ghosts-any"):
-        off = {n: float(np.hypot(*np.subtract(g["uv"], hand[n]))) for n, g in ghosts.items()
-               if n in hand and n not in state["marks"] and np.hypot(*np.subtract(g["uv"], hand[n])) > accept_px}
+        apart = {n: float(np.hypot(*np.subtract(g["uv"], hand[n]))) for n, g in ghosts.items()
+                 if n in hand and n not in state["marks"]}
+        off = {n: d for n, d in apart.items() if d > accept_px}
         if off:
             names = sorted(n for n in off if off[n] >= notice * max(off.values()))
             worst = max(off, key=off.get) if user == "ghosts" else names[int(rng.integers(len(names)))]
