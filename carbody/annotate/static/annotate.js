@@ -348,7 +348,8 @@ function drawMark(name, uv, info) {
   let note = "";
   if (info && info.residual_px !== null) note = ` ${info.residual_px.toFixed(1)} px`;
   if (info && info.note) note += ` — ${info.note}`;
-  if (current || status !== "kept" || app.view.scale > 1.2) text(label(name) + note, p[0] + 7, p[1] + 12, colour);
+  if (current || name === app.hover || status !== "kept" || app.view.scale > 1.2)
+    text(label(name) + note, p[0] + 7, p[1] + 12, colour);
   else if (note) text(note.trim(), p[0] + 6, p[1] + 12, colour);
 }
 
