@@ -393,27 +393,24 @@ TYRE_SEGMENTS = 36
 
 
 def tyre_triangles(control_points: np.ndarray) -> list[np.ndarray]:
-    """[(m, 3, 3) mm] the four tyres' triangles (tread and both faces), in the order of
-    :func:`projected_wheel_centres` (module doc: wheel centres, like for like)."""
+    """[(m, 3, 3) mm] the four tyres' triangles (tread and both faces) on the hubs the fit's wheel
+    search uses (:func:`carbody.fit.wheels.hub_points`, :data:`~carbody.fit.wheels.WHEELS`
+    order, the order of :func:`projected_wheel_centres`; module doc: wheel centres, like for
+    like)."""
+    from carbody.fit.wheels import arch_radii, hub_points
     from carbody.policy import FitPolicy
-    from carbody.topology import load_topology
-    from carbody.wireframe import wheel_centre
 
-    topo = load_topology()
     t = np.linspace(0.0, 2.0 * np.pi, TYRE_SEGMENTS, endpoint=False)
     nxt = np.roll(np.arange(TYRE_SEGMENTS), -1)
     tyres = []
-    for side in ("front", "rear"):
-        top = control_points[topo.junction_point_index(f"{side}_arch_top")]
-        y, z = wheel_centre(control_points, topo, side)
-        radius = FitPolicy().wheel_tyre_share * (top[2] - z)
-        for sign in (1.0, -1.0):
-            outer_x, inner_x = sign * abs(top[0]), sign * (abs(top[0]) - TYRE_WIDTH_SHARE * radius)
-            o, i = (np.stack([np.full_like(t, x), y + radius * np.cos(t), z + radius * np.sin(t)], 1)
-                    for x in (outer_x, inner_x))
-            centre_o, centre_i = (np.broadcast_to([x, y, z], o.shape) for x in (outer_x, inner_x))
-            tyres.append(np.concatenate([np.stack([o, o[nxt], i[nxt]], 1), np.stack([o, i[nxt], i], 1),
-                                         np.stack([centre_o, o, o[nxt]], 1), np.stack([centre_i, i, i[nxt]], 1)]))
+    for (x, y, z), arch in zip(hub_points(control_points), arch_radii(control_points)):
+        radius = FitPolicy().wheel_tyre_share * arch
+        inner_x = x - np.sign(x) * TYRE_WIDTH_SHARE * radius
+        o, i = (np.stack([np.full_like(t, face), y + radius * np.cos(t), z + radius * np.sin(t)], 1)
+                for face in (x, inner_x))
+        centre_o, centre_i = (np.broadcast_to([face, y, z], o.shape) for face in (x, inner_x))
+        tyres.append(np.concatenate([np.stack([o, o[nxt], i[nxt]], 1), np.stack([o, i[nxt], i], 1),
+                                     np.stack([centre_o, o, o[nxt]], 1), np.stack([centre_i, i, i[nxt]], 1)]))
     return tyres
 
 
@@ -422,11 +419,10 @@ def owner_image(camera: dict, layers: list[np.ndarray], shape: tuple[int, int]) 
     nearest one drawn there, −1 where none is: painter's order, far triangles first."""
     import cv2
 
-    from carbody.camera import View, view_rotation
-    from carbody.fit.report import project_with_camera
+    from carbody.camera import view_rotation
+    from carbody.fit.report import camera_view, project_with_camera
 
-    view = View(camera["azimuth_deg"], camera["elevation_deg"], camera["roll_deg"], camera["distance_mm"],
-                tuple(camera["aim_mm"]))
+    view = camera_view(camera)
     toward = view_rotation(view)[0]
     tris = np.concatenate(layers)
     owner = np.concatenate([np.full(len(t), k) for k, t in enumerate(layers)])
@@ -470,14 +466,11 @@ def tyres_like_for_like(photo: Photo, camera: dict, control_points: np.ndarray, 
     annotated = annotated_wheel_centres(photo)
     if not len(annotated) or not (folder / "body.step").is_file():
         return None, None
-    import cv2
-
-    h, w = cv2.imread(str(photo.image), cv2.IMREAD_GRAYSCALE).shape
+    w, h = photo.meta["image_size"]
     hubs = projected_wheel_centres(camera, control_points)
     seen = visible_tyre_centres(camera, control_points, folder / "body.step", (h, w))
     seen = np.where(np.isfinite(seen), seen, hubs)  # a tyre the car hides: its hub
-    found = {x["wheel"]: np.array(x["found_px"]) for x in (wheels or {}).get("wheels", [])
-             if x["weight"] > SURE_HUB_WEIGHT}
+    found = trusted_hubs(wheels)
     pairs = wheel_matches(annotated, hubs)
     distance = float(np.mean([np.linalg.norm(annotated[i] - seen[j]) for i, j, _ in pairs]))
     own = [float(np.linalg.norm(annotated[i] - (seen[j] - hubs[j]) - found[WHEELS[j]]))
@@ -598,14 +591,20 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
 SURE_HUB_WEIGHT = 0.6
 
 
+def trusted_hubs(wheels: dict | None) -> dict[str, np.ndarray]:
+    """{wheel name: (2,) px} the hubs the fit found in the photo and trusted
+    (``report["fit"]["wheels"]``, weight over :data:`SURE_HUB_WEIGHT`)."""
+    return {w["wheel"]: np.array(w["found_px"]) for w in (wheels or {}).get("wheels", [])
+            if w["weight"] > SURE_HUB_WEIGHT}
+
+
 def centroid_to_hub_px(photo: Photo, camera: dict, control_points: np.ndarray, wheels: dict | None) -> float | None:
     """The measure's own error: the mean distance (px) of the annotated wheels' centroids from the
     hubs the fit found in the photo and trusted (``report["fit"]["wheels"]``, weight over
     :data:`SURE_HUB_WEIGHT`), for the wheels matched to them; None without such a wheel."""
     from carbody.fit.wheels import WHEELS
 
-    found = {w["wheel"]: np.array(w["found_px"]) for w in (wheels or {}).get("wheels", [])
-             if w["weight"] > SURE_HUB_WEIGHT}
+    found = trusted_hubs(wheels)
     annotated = annotated_wheel_centres(photo)
     if not found or not len(annotated):
         return None
@@ -834,7 +833,7 @@ def photo_table(rows: list[dict]) -> str:
                      f"{fmt(r['residual_pct'], '.1f')} | {fmt(r['length_err_pct'], signed=True)} | "
                      f"{fmt(r['width_err_pct'], signed=True)} | {fmt(r['wheelbase_err_pct'], signed=True)} | "
                      + " | ".join(fmt(r["iou"][k], ".2f") for k, _ in REGION_PARTS)
-                     + f" | {wheel} | {fmt(r.get('tyre_dist_pct'), '.1f')} | {fb} |")
+                     + f" | {wheel} | {fmt(r['tyre_dist_pct'], '.1f')} | {fb} |")
     return "\n".join(lines)
 
 
@@ -925,10 +924,10 @@ def summarise(rows: list[dict]) -> dict:
         "wheel_dist_measured": sum(r["wheel_dist_pct"] is not None for r in rows),
         "median_wheel_dv_pct": median_or_none(r["wheel_dv_pct"] for r in rows),
         "median_centroid_to_hub_pct": median_or_none(r["centroid_to_hub_pct"] for r in rows),
-        "median_tyre_dist_pct": median_or_none(r.get("tyre_dist_pct") for r in rows),
-        "tyre_dist_measured": sum(r.get("tyre_dist_pct") is not None for r in rows),
-        "median_tyre_own_pct": median_or_none(r.get("tyre_own_pct") for r in rows),
-        "tyre_own_measured": sum(r.get("tyre_own_pct") is not None for r in rows),
+        "median_tyre_dist_pct": median_or_none(r["tyre_dist_pct"] for r in rows),
+        "tyre_dist_measured": sum(r["tyre_dist_pct"] is not None for r in rows),
+        "median_tyre_own_pct": median_or_none(r["tyre_own_pct"] for r in rows),
+        "tyre_own_measured": sum(r["tyre_own_pct"] is not None for r in rows),
         "centroid_to_hub_measured": sum(r["centroid_to_hub_pct"] is not None for r in rows),
         "photos_with_hubs": sum(bool(r["hubs_found"]) for r in rows),
         "hubs_found": sum(r["hubs_found"] or 0 for r in rows),
@@ -1016,9 +1015,9 @@ def summary_table(s: dict) -> str:
              f"(of {s['centroid_to_hub_measured']}) |",
              f"| like for like: median distance of the annotated wheels' centroids from those of the tyres our car "
              f"shows (fitted body and tyres drawn in the fitted camera), % | "
-             f"{fmt(s.get('median_tyre_dist_pct'), '.1f') or '–'} (of {s.get('tyre_dist_measured', 0)}) |",
+             f"{fmt(s['median_tyre_dist_pct'], '.1f') or '–'} (of {s['tyre_dist_measured']}) |",
              f"| its own error: the same with our tyres on the hubs the fit found, % | "
-             f"{fmt(s.get('median_tyre_own_pct'), '.1f') or '–'} (of {s.get('tyre_own_measured', 0)}) |",
+             f"{fmt(s['median_tyre_own_pct'], '.1f') or '–'} (of {s['tyre_own_measured']}) |",
              f"| photos with hubs found in them (hubs in all) | {s['photos_with_hubs']} ({s['hubs_found']}) |",
              f"| time per photo (wall), median / max | {fmt(s['median_time_s'], '.1f')} / "
              f"{fmt(s['max_time_s'], '.1f')} s |",

@@ -159,14 +159,21 @@ def camera_report(result) -> dict:
             "to_photo": None if result.to_photo is None else np.asarray(result.to_photo).tolist()}
 
 
+def camera_view(camera: dict):
+    """The :class:`~carbody.camera.View` of a report's ``camera`` (:func:`camera_report`)."""
+    from carbody.camera import View
+
+    return View(camera["azimuth_deg"], camera["elevation_deg"], camera["roll_deg"], camera["distance_mm"],
+                tuple(camera["aim_mm"]))
+
+
 def project_with_camera(camera: dict, points_mm: np.ndarray) -> np.ndarray:
     """(..., 2) photo pixels of car-frame points (mm) under a report's ``camera``
     (:func:`camera_report`): what :meth:`carbody.fit.FitResult.project_points` gives."""
-    from carbody.camera import View, apply_homography, project
+    from carbody.camera import apply_homography, project
 
-    view = View(camera["azimuth_deg"], camera["elevation_deg"], camera["roll_deg"], camera["distance_mm"],
-                tuple(camera["aim_mm"]))
-    uv = project(np.asarray(points_mm, dtype=float), view, camera["scale_px_per_mm"], camera["offset_px"])
+    uv = project(np.asarray(points_mm, dtype=float), camera_view(camera), camera["scale_px_per_mm"],
+                 camera["offset_px"])
     return uv if camera["to_photo"] is None else apply_homography(np.asarray(camera["to_photo"]), uv)
 
 
