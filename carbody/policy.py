@@ -109,6 +109,11 @@ class FitPolicy:
     #: among saloons) misses its marks in a pattern the field follows, which is no click noise.
     field_scales: tuple[float, ...] = (1.0, 2.0, 3.0)
 
+    #: The noise is read once more where the chosen view settles, on the full grid (False: on
+    #: every other value of each list, as the candidates are ranked; the page's quick fit,
+    #: which the full fit replaces within a second).
+    fine_noise: bool = True
+
     #: The scan's hypotheses leave out at most this many marks (a whole solve each): enough that
     #: one wild mark does not push the right view out of the best few.
     scan_rejections: int = 1

@@ -121,6 +121,29 @@ def test_from_the_fifth_mark_the_page_gets_a_wireframe_and_a_ghost_for_every_key
     assert all(m["residual_px"] is not None for m in fit["marks"].values())
 
 
+def test_the_quick_fit_draws_the_car_where_the_full_fit_does(example_marks):
+    """The per-click fit ranks fewer views and reads the marks' noise coarsely (it must answer
+    within 300 ms); the full fit that replaces it a second later moves the keypoints little.
+    Marks added in the file's order, each quick fit told the last one's view, as the page does."""
+    from carbody.annotate import live_fit
+    from carbody.fit import ViewPrior
+
+    from PIL import Image
+
+    names, size, last, off = list(example_marks), Image.open(EXAMPLE).size, None, []
+    for count in (6, 10, 16, len(names)):
+        marks = {n: example_marks[n] for n in names[:count]}
+        prior = ViewPrior.told(last) if last is not None else None
+        quick = live_fit.fit_marks(marks, size, prior, last, quick=True).fit
+        full = live_fit.fit_marks(marks, size, None, quick=False).fit
+        last = quick.view
+        at_quick, at_full = live_fit.keypoint_positions(quick), live_fit.keypoint_positions(full)
+        uv_quick = quick.project_points(np.array([at_quick[n] for n in at_full]))
+        uv_full = full.project_points(np.array([at_full[n] for n in at_full]))
+        off.append(float(np.median(np.linalg.norm(uv_quick - uv_full, axis=1))))
+    assert max(off) < 6.0, off  # px, on a car 730 px long
+
+
 def test_a_full_fit_given_the_photo_can_fit_its_outline_too(example_marks):
     """What the benchmark's oracle asks with --with-outline: the car's outline in the photo joins
     the marks (as reconstruct --outline), and without the switch it does not."""

@@ -4,7 +4,8 @@ Two fits, both :func:`carbody.fit.fit_wireframe` through its public options:
 
 - the **quick fit**, after every click: the view searched as ``carbody fit`` does, but with a
   lighter policy (:func:`quick_policy`): the scan round the car every 30° at the last fit's
-  elevation and perspective only, the previous view as the prior, one candidate refined briefly.
+  elevation and perspective only, the previous view as the prior, three candidates ranked at
+  the marks' noise read coarsely, one refined briefly.
   It is what the page draws within the click's 300 ms (``benchmarks/bench_annotate.py``).
 - the **full fit**, when the page is idle: the default policy and the photo's own view prior
   (the classifier's, or the view the user picked), exactly the fit ``carbody reconstruct``
@@ -37,6 +38,11 @@ MIN_MARKS = 5
 #: time and landed as near (3 px in the median); a 45° step lands 9 px off. The benchmark
 #: measures how far the quick fit lands from the full one on every click (BENCHMARKS: annotate).
 QUICK_AZIMUTH_STEP_DEG = 30.0
+
+#: The quick fit ranks the scan's best this many views by the full solve, each at the marks'
+#: noise it reads (coarse grid), and keeps that noise (``fine_noise`` off): half the full fit's
+#: six candidates, and no finer reading, halve that ranking's cost, which was half the quick fit's.
+QUICK_RANKED_CANDIDATES = 3
 QUICK_COARSE_EVALUATIONS = 10
 QUICK_POLISH_EVALUATIONS = 10
 
@@ -51,8 +57,8 @@ def quick_policy(previous: View | None) -> FitPolicy:
     """The per-click fit's policy (module docstring): the scan at the previous view's elevation
     and perspective, every ``QUICK_AZIMUTH_STEP_DEG``, one candidate refined briefly."""
     policy = replace(FIT_POLICY, scan_azimuth_step_deg=QUICK_AZIMUTH_STEP_DEG,
-                     refined_candidates=1, coarse_evaluations=QUICK_COARSE_EVALUATIONS,
-                     polish_evaluations=QUICK_POLISH_EVALUATIONS)
+                     refined_candidates=1, ranked_candidates=QUICK_RANKED_CANDIDATES, fine_noise=False,
+                     coarse_evaluations=QUICK_COARSE_EVALUATIONS, polish_evaluations=QUICK_POLISH_EVALUATIONS)
     if previous is None:
         return policy
     rho = 0.0 if previous.distance is None else 1000.0 / previous.distance

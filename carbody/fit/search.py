@@ -65,7 +65,8 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
         adapt: ``adapt(scorer, hypothesis, coarse=False) -> scorer``: a scorer for what a
             hypothesis says of the marks (:func:`carbody.fit.robust.marks_noise`), called with
             each of the scan's ``ranked_candidates`` best (:func:`ranked_fully`); the candidates
-            settle and are polished under what the chosen one says itself.
+            settle and are polished under what the chosen one says itself (on the full grid
+            unless the policy's ``fine_noise`` is off).
     """
     policy = scorer.policy
     scanned = []
@@ -101,7 +102,8 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
         # the marks' noise read again, on the full grid, where the chosen candidate fits best:
         # at the scan's coarse view the marks fit worse and read noisier, and a car fitted to
         # noisier marks keeps less of them
-        scorer = adapt(scorer, coarse[k] if scores[k][0] <= scores[k][1] else candidates[k])
+        scorer = adapt(scorer, coarse[k] if scores[k][0] <= scores[k][1] else candidates[k],
+                       coarse=not policy.fine_noise)
     # polished from where the cheap solve settled and from the scan's view: the full solve's
     # evidence has its own small valleys, and the cheap one's optimum can sit in another
     starts = [coarse[k], candidates[k]] + _prior_start(scorer, cameras, (coarse[k], candidates[k]))
