@@ -35,8 +35,7 @@ Definitions:
 
 - **Hand**: the number of hand marks (marking everything by hand: one click each).
 - **The same fit**: the full fit (:func:`carbody.fit.fit_wireframe`, camera distance found,
-  the session's view prior, given the photo's wheels as the page's full fit and ``carbody
-  reconstruct`` are; ``--marks-only``: the marks alone, as the page fitted before) of the marks placed so far is as close to the full fit of all the
+  the session's view prior) of the marks placed so far is as close to the full fit of all the
   hand marks as marking everything again is. Its distances from the hand fit are d3, the mean
   3D distance of its keypoints (the 35 left ones, each car at the hand fit's wheelbase), and
   d2, that of its projected keypoints (those the hand fit shows). ``--draws`` (12) re-markings
@@ -55,10 +54,10 @@ Definitions:
   the five hand marks farthest apart in the photo, then each time the hand mark whose addition
   brings the full fit nearest the hand fit (distances over τ3 plus over τ2), until the fit is
   the same. Even a page that never asked for what the annotator left out would need about
-  that many actions. Its fits are the guided sessions' (the photo's wheels, or the marks alone
-  with ``--marks-only``); ``--with-outline`` gives every fit the car's outline in the photo as
-  well (``reconstruct --outline``, wheels on too): does more of the photo's own evidence let
-  fewer marks reach the hand fit?
+  that many actions. With ``--with-wheels`` every fit of it (the hand fit and τ too) is given
+  the photo, so the wheels' hubs found there join the marks, as ``carbody reconstruct`` fits:
+  does the photo's own evidence let fewer marks reach the hand fit? ``--with-outline`` gives
+  every fit the car's outline in the photo as well (``reconstruct --outline``, wheels on too).
 - **Facing** (``--facing``): on every real photo, the keypoints the full fit of its hand marks
   shows on the photo, by how squarely they face the camera
   (:func:`carbody.annotate.guide.facing_cosines`), and the share the annotator marked.
@@ -76,7 +75,7 @@ Definitions:
 
     python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
                                         [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
-                                        [--oracle [--with-outline]] [--marks-only] [--facing] [--no-guided] [--to-the-end]
+                                        [--oracle [--with-wheels | --with-outline]] [--facing] [--no-guided] [--to-the-end]
                                         [--user asked|ghosts|ghosts-any [--notice F] [--seed N]]
 
 Real photos are read where they are (``--data``, default ``../shared/realphotos``); a photo or
@@ -228,8 +227,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
         server.serve_in_thread()
         client = Client(server)
         try:
-            photo = None if args.marks_only else session.rgb  # what the page's full fit is given
-            ref = Reference(hand, session.image_size, session.prior, args.accept, args.draws, photo=photo)
+            ref = Reference(hand, session.image_size, session.prior, args.accept, args.draws)
             state = client.state()
             actions, rows, latencies, refined_s, quick_cpu, quick_off, server_cpu = 0, [], [], [], [], [], []
             guess = state["view"]["azimuth_deg"]
@@ -262,7 +260,7 @@ def guided_session(name: str, image: Path, marks_file: Path, args) -> dict:
                             state = landed
                             refined_s.append(time.perf_counter() - start)
                 marks = {n: tuple(uv) for n, uv in state["marks"].items()}
-                full = live_fit.fit_marks(marks, session.image_size, session.prior, quick=False, photo=photo).fit \
+                full = live_fit.fit_marks(marks, session.image_size, session.prior, quick=False).fit \
                     if len(marks) >= live_fit.MIN_MARKS else None
                 d3, d2 = ref.distances(full)
                 rows.append({"action": actions, "op": op, "name": asked, "marks": len(marks), "latency_ms": ms if fitted else None,
@@ -391,7 +389,7 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
         session.close()
     from carbody.view.predict import read_image
 
-    photo = None if args.marks_only and not args.with_outline else read_image(image)
+    photo = read_image(image) if args.with_wheels or args.with_outline else None
     ref = Reference(hand, size, prior, args.accept, args.draws, photo=photo, outline=args.with_outline)
     names = list(hand)
     uv = np.array([hand[n] for n in names])
@@ -467,8 +465,8 @@ def main(argv=None) -> int:
     parser.add_argument("--json", type=Path, default=None, help="write every figure here")
     parser.add_argument("--verbose", "-v", action="store_true", help="print every action")
     parser.add_argument("--oracle", action="store_true", help="also the fewest hand marks a greedy order needs")
-    parser.add_argument("--marks-only", action="store_true",
-                        help="every fit of the marks alone, not given the photo's wheels (the page's full fit before)")
+    parser.add_argument("--with-wheels", action="store_true",
+                        help="the oracle's fits given the photo too: the wheels' hubs found in it join the marks")
     parser.add_argument("--with-outline", action="store_true",
                         help="the oracle's fits given the photo's wheels and the car's outline in it too")
     parser.add_argument("--facing", action="store_true",
@@ -531,7 +529,7 @@ def main(argv=None) -> int:
               f"{by_score} / {by_rule} of {draws} |")
     if oracles:
         wheels = (" (the photo's wheels and outline fitted too)" if args.with_outline else
-                  " (the marks alone)" if args.marks_only else "")
+                  " (the photo's wheels fitted too)" if args.with_wheels else "")
         print(f"\n| photo | hand marks | the greedy order's marks to the same fit{wheels} | τ3 mm / τ2 px |")
         print("|---|---|---|---|")
         for o in oracles:

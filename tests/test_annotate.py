@@ -144,29 +144,6 @@ def test_the_quick_fit_draws_the_car_where_the_full_fit_does(example_marks):
     assert max(off) < 6.0, off  # px, on a car 730 px long
 
 
-def test_the_full_fit_is_given_the_photos_wheels_as_reconstruct_is(tmp_path):
-    """The page's full fit, in its worker process, finds the wheels' hubs in the photo and fits
-    them with the marks, as ``carbody reconstruct`` does: the page then draws the car the
-    Reconstruct button makes. The quick fit, each click's, is the marks' alone."""
-    from carbody.annotate.session import AnnotationSession
-
-    session = AnnotationSession(EXAMPLE, keypoints=EXAMPLE_MARKS, output=tmp_path / "marks.json",
-                                classify=False, warm_up=False, view=30)
-    try:
-        assert session.state()["fit"]["quick"] and session.state()["fit"]["hubs"] == []
-        state = session.wait_refined(session.revision, timeout=120)
-    finally:
-        session.close()
-    assert state is not None and not state["fit"]["quick"]
-    hubs = state["fit"]["hubs"]
-    assert len(hubs) >= 2 and {h["wheel"] for h in hubs} <= {"front_left", "rear_left", "front_right", "rear_right"}
-    length = state["fit"]["car_length_px"]
-    assert all(np.hypot(*np.subtract(h["found"], h["fitted"])) < 0.02 * length for h in hubs)
-    in_process = AnnotationSession(EXAMPLE, keypoints=EXAMPLE_MARKS, output=tmp_path / "marks.json",
-                                   classify=False, full_fits=False, warm_up=False, view=30).refine_now()
-    assert in_process["fit"]["hubs"] == hubs
-
-
 def test_a_full_fit_given_the_photo_can_fit_its_outline_too(example_marks):
     """What the benchmark's oracle asks with --with-outline: the car's outline in the photo joins
     the marks (as reconstruct --outline), and without the switch it does not."""

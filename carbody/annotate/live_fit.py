@@ -197,9 +197,7 @@ def fit_payload(live: LiveFit, marks: dict[str, tuple[float, float]]) -> dict:
     photo), ``marks`` ({name: {reprojected, residual_px, status ("kept", "rejected", "renamed",
     "suspect"), note}}), ``ghosts`` ({name: {uv, sd_px, in_photo}} for the unmarked names the
     view shows: where the car puts it, how far off it may be there, whether that is on the
-    photo), ``summary`` (mean residual, poor-fit flags, wheelbase), ``hubs`` (the wheels' hubs
-    found in the photo and fitted: [{wheel, found, fitted}] photo px; empty for a fit of the
-    marks alone).
+    photo), ``summary`` (mean residual, poor-fit flags, wheelbase).
     """
     out = {"ok": live.fit is not None, "error": live.error, "quick": live.quick,
            "seconds": round(live.seconds, 4), "cpu_seconds": round(live.cpu_seconds, 4)}
@@ -247,21 +245,8 @@ def fit_payload(live: LiveFit, marks: dict[str, tuple[float, float]]) -> dict:
         wireframe=wireframe, car_length_px=round(length_px, 1), marks=per_mark, ghosts=ghosts,
         summary={"mean_residual_px": round(float(np.mean(values)), 2) if values else None,
                  "fits_poorly": bool(diag.fits_poorly), "misses_marks": bool(diag.misses_marks),
-                 "wheelbase_mm": round(fit.wheelbase_mm), "swapped": list(diag.swapped) if diag.swapped else None},
-        hubs=_hubs(fit))
+                 "wheelbase_mm": round(fit.wheelbase_mm), "swapped": list(diag.swapped) if diag.swapped else None})
     return out
-
-
-def _hubs(fit) -> list[dict]:
-    """[{wheel, found, fitted}] photo px: each hub the fit found in the photo and followed, and
-    the fitted car's hub there (:func:`carbody.fit.wheels.hub_points`)."""
-    from carbody.fit.wheels import WHEELS, hub_points
-
-    used = fit.wheels.wheels if fit.wheels is not None and fit.wheels.used else None
-    if not used:
-        return []
-    fitted = dict(zip(WHEELS, fit.project_points(hub_points(fit.wireframe.control_points))))
-    return [{"wheel": w["wheel"], "found": _px(w["found_px"]), "fitted": _px(fitted[w["wheel"]])} for w in used]
 
 
 def warm_up(quick: bool = True) -> None:
@@ -283,8 +268,6 @@ def warm_worker() -> None:
     warm_up(quick=False)
 
 
-def full_fit_payload(marks: dict[str, tuple[float, float]], image_size: tuple[int, int], prior,
-                     photo: np.ndarray | None = None) -> dict:
-    """The full fit's page payload (run in the worker process: only plain data crosses back),
-    given the photo's wheels as ``carbody reconstruct`` is when ``photo`` is given."""
-    return fit_payload(fit_marks(marks, image_size, prior, quick=False, photo=photo), marks)
+def full_fit_payload(marks: dict[str, tuple[float, float]], image_size: tuple[int, int], prior) -> dict:
+    """The full fit's page payload (run in the worker process: only plain data crosses back)."""
+    return fit_payload(fit_marks(marks, image_size, prior, quick=False), marks)

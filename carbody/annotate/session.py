@@ -278,7 +278,7 @@ class AnnotationSession:
 
                 self._worker = FullFitWorker(self._full_fit_done)
             self._in_flight = revision
-            if not self._worker.submit(revision, dict(self.sheet.marks), self.image_size, self.prior, self.image_path):
+            if not self._worker.submit(revision, dict(self.sheet.marks), self.image_size, self.prior):
                 self._in_flight = None
 
     def _full_fit_done(self, revision: int, payload: dict | None) -> None:
@@ -314,7 +314,7 @@ class AnnotationSession:
     def refine_now(self) -> dict:
         """Run the full fit of the marks as they are, in this process (the benchmark, the tests)."""
         with self._lock:
-            live = live_fit.fit_marks(dict(self.sheet.marks), self.image_size, self.prior, quick=False, photo=self.rgb)
+            live = live_fit.fit_marks(dict(self.sheet.marks), self.image_size, self.prior, quick=False)
             if live.fit is not None:
                 self.quick = live
                 self.payload = live_fit.fit_payload(live, self.sheet.marks)

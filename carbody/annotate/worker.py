@@ -5,9 +5,7 @@ hold back the next click's quick fit. A plain child process talking JSON lines o
 stdout rather than :mod:`multiprocessing`: it does not re-import the caller's main script, so
 the page works the same from the ``carbody`` command, a notebook or a test.
 
-Each request is one line ``{"id", "marks", "image_size", "prior", "image"}`` (``image``: the
-photo's path, whose wheels the fit is given as ``carbody reconstruct`` is, or null; read once);
-each answer one line
+Each request is one line ``{"id", "marks", "image_size", "prior"}``; each answer one line
 ``{"id", "payload"}`` (:func:`carbody.annotate.live_fit.full_fit_payload`) or ``{"id",
 "error"}``; the first line, ``{"ready": true}``, says the child has warmed up. The parent
 (:class:`FullFitWorker`) keeps at most one request in flight.
@@ -70,13 +68,10 @@ class FullFitWorker:
         self._write = threading.Lock()
         threading.Thread(target=self._read, daemon=True, name="carbody-full-fit-reader").start()
 
-    def submit(self, request_id: int, marks: dict, image_size: tuple[int, int], prior,
-               image: str | Path | None = None) -> bool:
-        """Send one fit (given the wheels of the photo at ``image`` when given); False when the
-        worker is gone."""
+    def submit(self, request_id: int, marks: dict, image_size: tuple[int, int], prior) -> bool:
+        """Send one fit; False when the worker is gone."""
         line = json.dumps({"id": request_id, "marks": {n: list(uv) for n, uv in marks.items()},
-                           "image_size": list(image_size), "prior": prior_to_json(prior),
-                           "image": None if image is None else str(image)})
+                           "image_size": list(image_size), "prior": prior_to_json(prior)})
         with self._write:
             try:
                 self._proc.stdin.write(line + "\n")
@@ -117,23 +112,15 @@ def main() -> None:
     """The child: answer fits until stdin closes."""
     from carbody.annotate import live_fit
 
-    from carbody.view.predict import read_image
-
     live_fit.warm_worker()
     sys.stdout.write(json.dumps({"ready": True}) + "\n")
     sys.stdout.flush()
-    photos: dict[str, object] = {}  # the page's one photo, decoded once
     for line in sys.stdin:
         request = None
         try:
             request = json.loads(line)
             marks = {n: (float(u), float(v)) for n, (u, v) in request["marks"].items()}
-            image = request.get("image")
-            if image is not None and image not in photos:
-                photos.clear()
-                photos[image] = read_image(image)
-            payload = live_fit.full_fit_payload(marks, tuple(request["image_size"]), prior_from_json(request["prior"]),
-                                                None if image is None else photos[image])
+            payload = live_fit.full_fit_payload(marks, tuple(request["image_size"]), prior_from_json(request["prior"]))
             answer = {"id": request["id"], "payload": payload}
         except Exception as exc:  # one bad fit must not end the worker
             answer = {"id": request.get("id", -1) if isinstance(request, dict) else -1, "error": str(exc)}

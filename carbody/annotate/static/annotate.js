@@ -297,7 +297,6 @@ function render() {
       line.forEach((uv, i) => { const p = toScreen(uv); i ? ctx.lineTo(p[0], p[1]) : ctx.moveTo(p[0], p[1]); });
       ctx.stroke();
     }
-    for (const hub of fit.hubs || []) drawHub(hub);
     for (const [name, g] of Object.entries(fit.ghosts)) drawGhost(name, g);
   }
   for (const [name, uv] of Object.entries(s.marks)) drawMark(name, uv, fit.ok ? fit.marks[name] : null);
@@ -308,15 +307,6 @@ function render() {
   }
   $("settled").hidden = !s.settled;
   renderSide();
-}
-
-function drawHub(hub) {                           // a wheel's hub found in the photo, and the car's
-  const found = toScreen(hub.found), fitted = toScreen(hub.fitted);
-  ctx.lineWidth = 1.5;
-  ctx.strokeStyle = "rgba(255, 23, 68, 0.9)";
-  ctx.beginPath(); ctx.arc(found[0], found[1], 7, 0, 2 * Math.PI); ctx.stroke();
-  ctx.strokeStyle = "rgba(118, 255, 3, 0.9)";
-  ctx.beginPath(); ctx.arc(fitted[0], fitted[1], 4, 0, 2 * Math.PI); ctx.stroke();
 }
 
 function drawGhost(name, g) {
