@@ -8,8 +8,10 @@ Two fits, both :func:`carbody.fit.fit_wireframe` through its public options:
   the marks' noise read coarsely, one refined briefly.
   It is what the page draws within the click's 300 ms (``benchmarks/bench_annotate.py``).
 - the **full fit**, when the page is idle: the default policy and the photo's own view prior
-  (the classifier's, or the view the user picked), exactly the fit ``carbody reconstruct``
-  would make of these marks. It replaces the quick one on the page when it lands.
+  (the classifier's, or the view the user picked), the fit ``carbody reconstruct --no-wheels``
+  would make of these marks (reconstruct also fits the wheels' hubs it finds in the photo; on the
+  page that took more marks to reach the hand fit: BENCHMARKS.md). It replaces the quick one on
+  the page when it lands.
 
 :func:`fit_payload` turns a fit into what the page draws (plain JSON): the projected wireframe
 (both halves), the reprojected marks with their residuals, the fit's diagnostics per mark, and a
