@@ -125,10 +125,10 @@ def test_the_quick_fit_draws_the_car_where_the_full_fit_does(example_marks):
     """The per-click fit ranks fewer views and reads the marks' noise coarsely (it must answer
     within 300 ms); the full fit that replaces it a second later moves the keypoints little.
     Marks added in the file's order, each quick fit told the last one's view, as the page does."""
+    from PIL import Image
+
     from carbody.annotate import live_fit
     from carbody.fit import ViewPrior
-
-    from PIL import Image
 
     names, size, last, off = list(example_marks), Image.open(EXAMPLE).size, None, []
     for count in (6, 10, 16, len(names)):
