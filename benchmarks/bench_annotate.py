@@ -61,6 +61,13 @@ Definitions:
 - **Facing** (``--facing``): on every real photo, the keypoints the full fit of its hand marks
   shows on the photo, by how squarely they face the camera
   (:func:`carbody.annotate.guide.facing_cosines`), and the share the annotator marked.
+- **Quick against full** (``--quick-vs-full``): on the example and every real photo, its hand
+  marks added in the file's order, the quick fit of each count (told the last quick fit's view,
+  as the page does) against the full fit of the same marks, at every ``--every``-th count and
+  all: the quick fit's processor time, how far its keypoints lie from the full fit's (median
+  over the keypoints, % of the car's length in the photo) and how often its view is more than
+  30° from the full fit's. Each time for the quick policy and for the one before commit 5db2425
+  (six views ranked, the noise read again on the full grid), fitted one after the other.
 - **Latency**: wall-clock from sending an edit to having its answer parsed (the update the page
   draws; the page's own drawing adds a few ms), for edits with five marks or more (a fit). Two
   runs: *paused* (the guided sessions above: the worker idle when the click comes) and *brisk*
@@ -76,6 +83,7 @@ Definitions:
     python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
                                         [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
                                         [--oracle [--with-wheels | --with-outline]] [--facing] [--no-guided] [--to-the-end]
+                                        [--quick-vs-full [--every 3]]
                                         [--user asked|ghosts|ghosts-any [--notice F] [--seed N]]
 
 Real photos are read where they are (``--data``, default ``../shared/realphotos``); a photo or
@@ -414,6 +422,58 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
 
 
 #: Bins of the facing cosine (:func:`facing_rates`).
+#: The quick policies ``--quick-vs-full`` compares: the page's, and the one before commit 5db2425.
+QUICK_POLICIES = ("the page's (three views ranked, the coarse noise kept)",
+                  "before 5db2425 (six views ranked, the noise read again)")
+
+
+def quick_against_full(cases: list[tuple[str, Path, Path]], every: int = 3) -> list[dict]:
+    """One row per quick policy (``QUICK_POLICIES``): the quick fit against the full fit of the
+    same marks (module docstring, "Quick against full"), over ``cases`` ((name, image, marks))."""
+    from dataclasses import replace
+
+    from PIL import Image
+
+    from carbody.annotate import live_fit
+    from carbody.fit import ViewPrior, read_keypoints
+    from carbody.library import default_library
+
+    library = default_library()
+    page = live_fit.quick_policy
+    policies = (page, lambda previous: replace(page(previous), ranked_candidates=6, fine_noise=True))
+    rows = [{"policy": label, "fits": 0, "cpu_ms": [], "off_pct": [], "views_off": 0} for label in QUICK_POLICIES]
+    full_fits: dict[tuple[str, int], object] = {}
+    for row, policy in zip(rows, policies):
+        live_fit.quick_policy = policy
+        try:
+            for name, image, marks_file in cases:
+                hand = read_keypoints(marks_file).points
+                names, size, last = list(hand), Image.open(image).size, None
+                for count in range(live_fit.MIN_MARKS, len(names) + 1):
+                    marks = {n: hand[n] for n in names[:count]}
+                    quick = live_fit.fit_marks(marks, size, None if last is None else ViewPrior.told(last), last,
+                                               quick=True, library=library)
+                    if quick.fit is None:
+                        continue
+                    last = quick.fit.view
+                    if count % every and count != len(names):
+                        continue
+                    if (name, count) not in full_fits:
+                        full_fits[name, count] = live_fit.fit_marks(marks, size, None, quick=False, library=library).fit
+                    full = full_fits[name, count]
+                    at_quick, at_full = live_fit.keypoint_positions(quick.fit), live_fit.keypoint_positions(full)
+                    apart = np.linalg.norm(quick.fit.project_points(np.array([at_quick[n] for n in at_full]))
+                                           - full.project_points(np.array([at_full[n] for n in at_full])), axis=1)
+                    length = float(np.ptp(np.array(live_fit.projected_wireframe(full)).reshape(-1, 2)[:, 0]))
+                    row["fits"] += 1
+                    row["cpu_ms"].append(1000.0 * quick.cpu_seconds)
+                    row["off_pct"].append(100.0 * float(np.median(apart)) / length)
+                    row["views_off"] += angular(quick.fit.view.azimuth, full.view.azimuth) > 30.0
+        finally:
+            live_fit.quick_policy = page
+    return rows
+
+
 FACING_BINS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0)
 
 
@@ -472,6 +532,9 @@ def main(argv=None) -> int:
     parser.add_argument("--facing", action="store_true",
                         help="also the annotators' share of marked keypoints by how squarely they face the camera")
     parser.add_argument("--no-guided", action="store_true", help="skip the guided sessions and the latencies")
+    parser.add_argument("--quick-vs-full", action="store_true",
+                        help="also the quick fit against the full fit on every real photo, both quick policies")
+    parser.add_argument("--every", type=int, default=3, help="--quick-vs-full fits every this many marks")
     parser.add_argument("--user", choices=("asked", "ghosts", "ghosts-any"), default="asked",
                         help="the simulated user: marks what the page asks ('asked'), or first drags "
                              "the ghost farthest off its point while one is off by more than a click ('ghosts'), "
@@ -505,6 +568,12 @@ def main(argv=None) -> int:
         oracles = [oracle(name, image, marks, args) for name, image, marks in cases]
     if args.facing and args.data.is_dir():
         facing = facing_rates(args.data)
+    quick_rows = []
+    if args.quick_vs_full:
+        every_photo = cases[:1] + ([(p.stem, args.data / "images" / f"{p.stem}.jpg", p)
+                                    for p in sorted((args.data / "keypoints").glob("*.json"))]
+                                   if args.data.is_dir() else [])
+        quick_rows = quick_against_full(every_photo, args.every)
     load_end = os.getloadavg()
 
     print(f"\nmachine: {os.cpu_count()} cores; load average {load[0]:.1f} at the start, {load_end[0]:.1f} at the end")
@@ -540,10 +609,17 @@ def main(argv=None) -> int:
         print("|---|---|---|")
         for f in facing:
             print(f"| {f['cos'][0]:.1f}–{f['cos'][1]:.1f} | {f['shown']} | {f['marked']:.0%} |")
+    if quick_rows:
+        print("\n| quick policy | fits | processor time, median / p90 ms | keypoints off the full fit's, median / p90 "
+              "% of the car's length | views more than 30° off the full fit's |")
+        print("|---|---|---|---|---|")
+        for q in quick_rows:
+            print(f"| {q['policy']} | {q['fits']} | {np.median(q['cpu_ms']):.0f} / {np.percentile(q['cpu_ms'], 90):.0f} | "
+                  f"{np.median(q['off_pct']):.2f} / {np.percentile(q['off_pct'], 90):.2f} | {q['views_off']} |")
     if not results:
         if args.json:
             args.json.write_text(json.dumps({"load_start": load, "load_end": load_end, "oracle": oracles,
-                                             "facing": facing}, indent=1))
+                                             "facing": facing, "quick_vs_full": quick_rows}, indent=1))
         return 0
     paused = [ms for r in results for op, ms in r["latency_ms"] if op != "hide"]
     hides = [ms for r in results for op, ms in r["latency_ms"] if op == "hide"]
@@ -563,7 +639,8 @@ def main(argv=None) -> int:
               f"p90 {np.percentile(off, 90):.1f} px (n = {len(off)})")
     if args.json:
         args.json.write_text(json.dumps({"load_start": load, "load_end": load_end, "cases": results,
-                                         "brisk_latency_ms": brisk, "oracle": oracles, "facing": facing}, indent=1))
+                                         "brisk_latency_ms": brisk, "oracle": oracles, "facing": facing,
+                                         "quick_vs_full": quick_rows}, indent=1))
     return 0
 
 

@@ -1,4 +1,5 @@
 """The guided-page benchmark's rule for "the same fit" (benchmarks/bench_annotate.py)."""
+import json
 import sys
 from pathlib import Path
 
@@ -74,3 +75,17 @@ def test_the_ghosts_any_user_drags_one_of_the_ghosts_off_by_more_than_a_click():
     # noticing only the badly off: "c" (30 px) is, "b" (9 px) is not half as far off
     picks = {ba.next_action(state, hand, 5.0, "ghosts-any", rng, notice=0.5)[1] for _ in range(20)}
     assert picks == {"c"}
+
+
+def test_quick_against_full_compares_both_quick_policies_on_the_same_full_fits(tmp_path):
+    """--quick-vs-full on the example's first twelve marks: a row per quick policy, each fit at
+    the same counts; the page's quick fit lands near the full fit, from the same view."""
+    from carbody.fit import read_keypoints
+
+    marks = dict(list(read_keypoints(ba.REPO / "examples" / "car_keypoints.json").points.items())[:12])
+    path = tmp_path / "twelve.json"
+    path.write_text(json.dumps({"image": "car.png", "keypoints": {n: list(uv) for n, uv in marks.items()}}))
+    rows = ba.quick_against_full([("example", ba.REPO / "examples" / "car.png", path)], every=6)
+    assert [r["policy"] for r in rows] == list(ba.QUICK_POLICIES)
+    assert all(r["fits"] == 2 and len(r["cpu_ms"]) == 2 and r["views_off"] == 0 for r in rows)
+    assert max(rows[0]["off_pct"]) < 2.0  # % of the car's length
