@@ -577,7 +577,8 @@ def main(argv=None) -> int:
     load_end = os.getloadavg()
 
     print(f"\nmachine: {os.cpu_count()} cores; load average {load[0]:.1f} at the start, {load_end[0]:.1f} at the end")
-    print(f"simulated user: {args.user}" + (f", seed {args.seed}, notice {args.notice}" if args.user == "ghosts-any" else ""))
+    if results:
+        print(f"simulated user: {args.user}" + (f", seed {args.seed}, notice {args.notice}" if args.user == "ghosts-any" else ""))
     if results:
         print("\n| photo | hand marks | view guessed → fitted (picked) | first fit at | same fit at | earlier rule "
               "| first same | settled at (3D mm / photo px there) | actions in all (accepted, hidden, dragged) | the same fit then "
