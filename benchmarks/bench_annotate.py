@@ -421,7 +421,6 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
             "same": ref.same(d3, d2), "tau3_mm": ref.tau3, "tau2_px": ref.tau2}
 
 
-#: Bins of the facing cosine (:func:`facing_rates`).
 #: The quick policies ``--quick-vs-full`` compares: the page's, and the one before commit 5db2425.
 QUICK_POLICIES = ("the page's (three views ranked, the coarse noise kept)",
                   "before 5db2425 (six views ranked, the noise read again)")
@@ -474,6 +473,7 @@ def quick_against_full(cases: list[tuple[str, Path, Path]], every: int = 3) -> l
     return rows
 
 
+#: Bins of the facing cosine (:func:`facing_rates`).
 FACING_BINS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0)
 
 
@@ -579,7 +579,6 @@ def main(argv=None) -> int:
     print(f"\nmachine: {os.cpu_count()} cores; load average {load[0]:.1f} at the start, {load_end[0]:.1f} at the end")
     if results:
         print(f"simulated user: {args.user}" + (f", seed {args.seed}, notice {args.notice}" if args.user == "ghosts-any" else ""))
-    if results:
         print("\n| photo | hand marks | view guessed → fitted (picked) | first fit at | same fit at | earlier rule "
               "| first same | settled at (3D mm / photo px there) | actions in all (accepted, hidden, dragged) | the same fit then "
               "| τ3 mm / τ2 px | re-markings the same, score / earlier rule |")
