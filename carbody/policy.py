@@ -62,6 +62,13 @@ class FitPolicy:
     #: elevation (0° unless told): photos are taken from near a person's height.
     elevation_prior_sd_deg: float = 20.0
 
+    #: The roll prior: a Gaussian of this standard deviation (degrees) around the told roll (0°
+    #: unless told): a photo taken by hand is seldom level to within a degree or two. The fit
+    #: frees the roll, within ``roll_range_deg`` of the told one, only where the marks pay for
+    #: it (:func:`carbody.fit.search.with_roll`; 0: the roll kept as told).
+    roll_prior_sd_deg: float = 2.0
+    roll_range_deg: float = 15.0
+
     #: A classifier's probabilities are floored at this share of a uniform prior before they
     #: count: a confident but wrong classifier must not veto the view the marks fit.
     classifier_floor: float = 0.05

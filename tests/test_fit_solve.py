@@ -181,12 +181,17 @@ def test_turns_that_diverge_leave_the_camera_looking_at_the_car(library):
     """A real photo (a Camry from the front, six marks) told a phone's focal length (26 mm) it
     was not taken with: each turn toward the car aimed further off it, until the camera looked
     80° away and no car fitted the marks. The passes now stop where they would diverge, and the
-    fit is the unturned one's, saying so."""
+    fit is the unturned one's, saying so. (The roll is kept level: six marks under a wrong focal
+    length pay for a tilt, and then the turns settle 6° off the car, which is not what this
+    guards.)"""
+    from dataclasses import replace
+
     meta = json.loads((REAL_PHOTOS / "keypoints" / "cps_te47.json").read_text())
     w, h = meta["image_size"]
     phone_px = 26.0 * np.hypot(w, h) / np.hypot(36, 24)  # 26 mm, 35 mm-equivalent
     res = fit_wireframe({k: tuple(v) for k, v in meta["keypoints"].items()}, None, library, image_size=(w, h),
-                        camera_distance_mm="auto", principal_point="centre", focal_px=phone_px)
+                        camera_distance_mm="auto", principal_point="centre", focal_px=phone_px,
+                        policy=replace(FIT_POLICY, roll_range_deg=0.0))
     assert res.camera_turn_diverged and res.to_photo is None and res.camera_turn_deg == 0.0
     assert not res.diagnostics.contradicts and res.solution.residual_px.mean() < 10
     assert abs((res.view.azimuth - meta["view_estimate_deg"] + 180) % 360 - 180) < 15
@@ -244,6 +249,29 @@ def test_refinement_wins_back_a_wrong_angle(library, topology):
     assert abs(fixed.view.azimuth - 60) < abs(wrong.view.azimuth - 60) - 5
     assert e_fixed < 0.5 * e_wrong
     assert fixed.solution.cost <= wrong.solution.cost
+
+
+@pytest.mark.parametrize("template, azimuth", [("Volkswagen Golf Mk7", 40), ("Hyundai Santa Fe", 320)])
+def test_a_tilted_photo_s_roll_is_found_with_the_view(library, topology, template, azimuth):
+    """A three-quarter photo taken 4° off level: the fit finds the roll (its prior, 2° about the
+    told 0°, lets the marks move it), lands on the view, and fits the car better than with the
+    roll kept at 0°, which turned the view and tilted the car to explain the slant. The same
+    photo taken level stays level: a tenth of a degree does not pay for the extra angle."""
+    from dataclasses import replace
+
+    t, loo, truth = _left_out(library, template)
+    wb = library.template_wheelbase_mm[t]
+    slots, uv = _observe(truth, View(azimuth, 8, 4.0), noise=1.0)
+    kps = {s.name: p for s, p in zip(slots, uv)}
+    kp = topology.keypoint_point_indices
+    found = fit_wireframe(kps, None, loo, wheelbase_mm=wb)
+    level = fit_wireframe(kps, None, loo, wheelbase_mm=wb, policy=replace(FIT_POLICY, roll_range_deg=0.0))
+    assert level.view.roll == 0.0 and abs(found.view.roll - 4.0) < 1.5
+    assert abs((found.view.azimuth - azimuth + 180) % 360 - 180) < 3
+    error = [np.linalg.norm(_normalised(r)[kp] - truth[kp], axis=1).mean() for r in (found, level)]
+    assert error[0] < 0.5 * error[1]
+    slots, uv = _observe(truth, View(azimuth, 8, 0.0), noise=1.0)
+    assert fit_wireframe({s.name: p for s, p in zip(slots, uv)}, None, loo, wheelbase_mm=wb).view.roll == 0.0
 
 
 def test_right_side_view_with_mirror_names(library, topology):

@@ -60,10 +60,12 @@ PX_DECIMALS = 2
 def quick_policy(previous: View | None) -> FitPolicy:
     """The per-click fit's policy (module docstring): the scan at the previous view's elevation
     and perspective, every ``QUICK_AZIMUTH_STEP_DEG``, ``QUICK_RANKED_CANDIDATES`` ranked at
-    the marks' noise read coarsely, one refined briefly."""
+    the marks' noise read coarsely, one refined briefly; the roll kept as told (the full fit
+    frees it where the marks pay for it, a second polish the click cannot wait for)."""
     policy = replace(FIT_POLICY, scan_azimuth_step_deg=QUICK_AZIMUTH_STEP_DEG,
                      refined_candidates=1, ranked_candidates=QUICK_RANKED_CANDIDATES, fine_noise=False,
-                     coarse_evaluations=QUICK_COARSE_EVALUATIONS, polish_evaluations=QUICK_POLISH_EVALUATIONS)
+                     coarse_evaluations=QUICK_COARSE_EVALUATIONS, polish_evaluations=QUICK_POLISH_EVALUATIONS,
+                     roll_range_deg=0.0)
     if previous is None:
         return policy
     rho = 0.0 if previous.distance is None else 1000.0 / previous.distance

@@ -81,8 +81,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--elevation", type=float, default=0.0,
                    help="camera elevation told, degrees (default 0: a prior, searched unless --no-refine)")
     p.add_argument("--roll", type=float, default=0.0,
-                   help="camera roll of a tilted photo, degrees within ±90 (default 0; kept as given: the "
-                        "refinement moves azimuth and elevation only)")
+                   help="camera roll of a tilted photo, degrees within ±90 (default 0: a prior of ±2°, "
+                        "refined with the view unless --no-refine)")
     p.add_argument("--wheelbase", type=float, default=None,
                    help="real wheelbase, mm (default: from the fitted car's proportions); "
                         "told, the fit also knows the car's width and height in mm")
@@ -161,6 +161,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from carbody.fit.report import build_report, draw_error_chart, fit_notes, refusal_line, wheelbase_source, write_json
     from carbody.fit.options import FitOptions
     from carbody.fit.single_view import fit_wireframe
+    from carbody.fit.view_prior import ViewPrior
     from carbody.outputs import (JSON, PHOTO, PICTURE, STEP, check_distinct, check_not_inputs, check_output_file,
                                  staged)
     from carbody.progress import progress
@@ -171,7 +172,8 @@ def run_fit(args: argparse.Namespace) -> int:
     # Every input is checked before anything is written.
     if args.view is None and args.no_refine:
         raise FitError("--no-refine keeps the view given: give --view")
-    view = None if args.view is None else View(read_view(args.view), args.elevation, args.roll)
+    view = ViewPrior.uniform(elevation_deg=args.elevation, roll_deg=args.roll) if args.view is None else \
+        View(read_view(args.view), args.elevation, args.roll)
     distance = parse_distance(args.distance)
     with progress(("read", "fit", "write"), args.quiet) as bar:
         bar.start("read")

@@ -163,6 +163,13 @@ class Scorer:
         other._rows = np.array([row[n] for n in marks.names])
         return other
 
+    def with_prior(self, prior: ViewPrior) -> "Scorer":
+        """The same scorer under another view prior."""
+        other = object.__new__(Scorer)
+        other.__dict__.update(self.__dict__)
+        other.prior = prior
+        return other
+
     def excluding(self, index: int) -> "Scorer":
         """The same scorer with mark ``index`` left out of every hypothesis too (and those it
         already leaves out): a misplaced click found by trying each mark out

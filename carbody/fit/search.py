@@ -10,7 +10,8 @@ the library's cars; a real car's few marks can fit one of them best at the wrong
 ``refined_candidates`` best of those are refined (Nelder–Mead over azimuth, elevation and a
 pinhole's perspective, the cheap solve), ranked by the full solve at the better of where each
 started and where it settled, and the best polished with it from both, under the marks' noise
-read once more (on the full grid) at the better of the two. A view told, or the classifier's,
+read once more (on the full grid) at the better of the two. (The roll is the cameras'; the fit
+frees it once the marks it keeps are settled: :func:`with_roll`.) A view told, or the classifier's,
 enters only as the prior in the score, so a view told 90° or 180° off, the car's other side or
 end, and a view far from a start all come out of the same search. What the scan costs does not
 depend on the marks: every fit costs about the same.
@@ -32,8 +33,8 @@ PERSPECTIVE_RANGE = (0.0, 1.0)
 #: Below this ρ (a camera over 1000 wheelbases, ~3 km, away) the view is orthographic.
 PERSPECTIVE_FAR = 1e-3
 
-#: Initial simplex steps of the local search: degrees of azimuth and elevation; ρ.
-SIMPLEX_STEPS = (2.0, 2.0, 0.1)
+#: Initial simplex steps of the local search: degrees of azimuth and elevation; ρ; degrees of roll.
+SIMPLEX_STEPS = (2.0, 2.0, 0.1, 2.0)
 
 #: The local search stays this far (degrees) in azimuth from where it starts: past the scan's
 #: neighbouring azimuths another candidate's valley begins.
@@ -112,6 +113,55 @@ def search_views(scorer: Scorer, cameras: list[View], find_perspective: bool,
     return min(polished, key=lambda h: h.score), scanned, scorer
 
 
+def with_roll(scorer: Scorer, level: Hypothesis, free: tuple[str, ...]) -> Hypothesis:
+    """``level`` (the best view at the roll told) polished again with the roll free too, when the
+    marks pay for the extra angle; else ``level``.
+
+    A photo taken by hand is seldom level, and a tilt left to the other angles turns the view and
+    bends the car (``benchmarks/bench_roll.py``). But the marks of a level photo also fit a roll
+    of a tenth of a degree a little better, and the view and the car's width trade with it: with
+    the roll always free, level renders came out 37 mm off, not 25 (``bench_fit_accuracy.py
+    --elevation 10 --known-only``, the refined rows). So the roll is kept only when its evidence beats the level
+    view's with the roll integrated out (a Laplace approximation). The score is read at the
+    level view and a step either side of it (the car solved afresh at each, the roll's prior
+    in); a parabola through them gives the roll's best value, what it gains there, and its
+    spread σ_roll. The gain must exceed the Occam factor log(σ_prior / σ_roll). Then every angle
+    is polished from that roll; the better of that and ``level`` is kept."""
+    from dataclasses import replace
+
+    from carbody.errors import AngleError, FitError
+
+    policy = scorer.policy
+    sd = policy.roll_prior_sd_deg
+    if policy.roll_range_deg <= 0 or sd <= 0:
+        return level
+    rolling = scorer.with_prior(replace(scorer.prior, roll_deg=level.view.roll, roll_sd_deg=sd))
+    view, kept = level.view, level.kept
+    try:
+        steps = (0.0, ROLL_STEP_DEG, -ROLL_STEP_DEG)
+        centre, plus, minus = (rolling.score(v, kept, rolling.solve(v, kept))[0]
+                               for v in (replace(view, roll=view.roll + step) for step in steps))
+    except (FitError, AngleError):
+        return level
+    slope = (plus - minus) / (2.0 * ROLL_STEP_DEG)
+    curvature = max((plus + minus - 2.0 * centre) / ROLL_STEP_DEG ** 2, 1.0 / sd ** 2)  # (at least the prior's)
+    gain = slope ** 2 / (2.0 * curvature)
+    if not gain > np.log(sd * np.sqrt(curvature)):
+        return level
+    reach = policy.roll_range_deg
+    roll = float(np.clip(view.roll - slope / curvature, view.roll - reach, view.roll + reach))
+    start = rolling.hypothesis(replace(view, roll=roll))
+    if start is None:
+        return level
+    rolled = refine(rolling, start, free + ("roll",), cheap=False, evaluations=policy.polish_evaluations,
+                    tolerance=policy.polish_tolerance_deg)
+    return rolled if rolled.score < level.score else level
+
+
+#: Step (degrees) of the finite differences that read the roll's slope and spread off the score.
+ROLL_STEP_DEG = 0.5
+
+
 def _prior_start(scorer: Scorer, cameras: list[View], chosen) -> list[Hypothesis]:
     """[the full solve at the prior's own view (the classifier's top class or the view told),
     with the camera of the scan's that scores best there], or [] when the prior says nothing or
@@ -170,9 +220,9 @@ def distinct(hypotheses: list[Hypothesis], count: int, separation_deg: float) ->
 def refine(scorer: Scorer, start: Hypothesis, free: tuple[str, ...], cheap: bool, evaluations: int,
            tolerance: float) -> Hypothesis:
     """The best hypothesis near ``start``: Nelder–Mead over the ``free`` angles ("azimuth",
-    "elevation", "perspective") with the marks ``start`` explains (a mark the view stops seeing
-    is left out and charged), then scored afresh there, misplaced marks looked for again; the
-    better of that and ``start`` scored alike."""
+    "elevation", "perspective", "roll": within ``roll_range_deg`` of the prior's) with the marks
+    ``start`` explains (a mark the view stops seeing is left out and charged), then scored afresh
+    there, misplaced marks looked for again; the better of that and ``start`` scored alike."""
     from scipy.optimize import minimize
 
     from carbody.errors import AngleError, FitError
@@ -180,15 +230,18 @@ def refine(scorer: Scorer, start: Hypothesis, free: tuple[str, ...], cheap: bool
     policy = scorer.policy
     view0 = start.view
     aim = view0.aim
-    x0 = np.array([view0.azimuth, view0.elevation, perspective_of(view0)])
-    mask = np.array([n in free for n in ("azimuth", "elevation", "perspective")])
-    lo = np.array([x0[0] - LOCAL_AZIMUTH_RANGE_DEG, policy.elevation_range_deg[0], PERSPECTIVE_RANGE[0]])
-    hi = np.array([x0[0] + LOCAL_AZIMUTH_RANGE_DEG, policy.elevation_range_deg[1], PERSPECTIVE_RANGE[1]])
+    x0 = np.array([view0.azimuth, view0.elevation, perspective_of(view0), view0.roll])
+    mask = np.array([n in free for n in ("azimuth", "elevation", "perspective", "roll")])
+    roll_reach = policy.roll_range_deg if mask[3] else np.inf  # (a roll kept stays as it is)
+    lo = np.array([x0[0] - LOCAL_AZIMUTH_RANGE_DEG, policy.elevation_range_deg[0], PERSPECTIVE_RANGE[0],
+                   scorer.prior.roll_deg - roll_reach])
+    hi = np.array([x0[0] + LOCAL_AZIMUTH_RANGE_DEG, policy.elevation_range_deg[1], PERSPECTIVE_RANGE[1],
+                   scorer.prior.roll_deg + roll_reach])
 
     def view_at(x: np.ndarray) -> View:
         y = x0.copy()
         y[mask] = x
-        return with_perspective(View(float(y[0]) % 360.0, float(y[1]), view0.roll), float(y[2]), aim)
+        return with_perspective(View(float(y[0]) % 360.0, float(y[1]), float(y[3])), float(y[2]), aim)
 
     def objective(x: np.ndarray) -> float:
         y = x0.copy()

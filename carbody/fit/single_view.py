@@ -37,7 +37,7 @@ from carbody.fit.keypoints_io import check_keypoints
 from carbody.fit.options import FitOptions, check_wheelbase
 from carbody.fit.result import FitResult
 from carbody.fit.robust import explains_poorly, left_out_in_turn, marks_noise, twin_exchanges
-from carbody.fit.search import distinct, refine, search_views, view_spread
+from carbody.fit.search import distinct, refine, search_views, view_spread, with_roll
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.size import SizeEstimate, estimate_size
 from carbody.fit.solve import along_scale, joint_keypoint_covariance, reaches_camera, scale_spread, scale_trade
@@ -138,6 +138,8 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             if adapted is not scorer:
                 scorer, turn.hypothesis = adapted, polish(adapted, adapted.hypothesis(turn.hypothesis.view)
                                                           or turn.hypothesis, free=_polisher_free(options, plan))
+        if options.refine:  # on the marks kept, the camera turned to the car: the roll, where they pay for it
+            turn.hypothesis = with_roll(scorer, turn.hypothesis, _polisher_free(options, plan))
         wheels_fit = hubs = None
         if isinstance(photo, np.ndarray) and options.wheels and options.method != "paper":
             from carbody.fit.wheels import follow_wheels
@@ -184,6 +186,7 @@ def _with_outline(scorer: Scorer, turn: Turn, photo, marks_uv: np.ndarray, optio
 def _view_prior(view, options: FitOptions) -> ViewPrior:
     """The prior the search takes from what is told of the view (``fit_wireframe``'s ``view``)."""
     if isinstance(view, ViewPrior):
+        _check_roll(view.roll_deg)
         return replace(view, weight=view.weight * options.view_prior_weight)
     if view is None:
         if not options.refine:
@@ -193,9 +196,14 @@ def _view_prior(view, options: FitOptions) -> ViewPrior:
         view = View(check_azimuth(read_view(view) if isinstance(view, str) else view))
     else:
         check_azimuth(view.azimuth)
-    if abs(view.roll) > MAX_ABS_ROLL_DEG:
-        raise AngleError(f"view roll {view.roll:g}° is outside ±{MAX_ABS_ROLL_DEG:g}°: turn the photo upright")
+    _check_roll(view.roll)
     return ViewPrior.told(view, options.policy, options.view_prior_weight)
+
+
+def _check_roll(roll_deg: float) -> None:
+    """Refuse a roll told past ±``MAX_ABS_ROLL_DEG`` (a photo on its side or upside down)."""
+    if abs(roll_deg) > MAX_ABS_ROLL_DEG:
+        raise AngleError(f"view roll {roll_deg:g}° is outside ±{MAX_ABS_ROLL_DEG:g}°: turn the photo upright")
 
 
 def _located(scorer: Scorer, cameras: list[View], plan: CameraPlan, prior: ViewPrior,
@@ -235,7 +243,8 @@ def _at_marks_noise(scorer: Scorer, hypothesis: Hypothesis, coarse: bool = False
 
 
 def _polisher_free(options: FitOptions, plan: CameraPlan) -> tuple[str, ...]:
-    """What the fit refines: the angles when the view is searched, the perspective when it is found."""
+    """What the fit refines: the angles when the view is searched, the perspective when it is
+    found (the roll stays as the search left it: :func:`carbody.fit.search.with_roll`)."""
     return (("azimuth", "elevation") if options.refine else ()) + (("perspective",) if plan.finds_perspective else ())
 
 

@@ -3,8 +3,9 @@
 The view search (:mod:`carbody.fit.search`) scores every view round the car by how well the
 library explains the marks there; the prior adds what is known besides: a view the user told
 (a von Mises distribution around its azimuth, a Gaussian around its elevation) or the view
-classifier's probabilities over its 24 classes. Either is a preference among views the marks fit
-about equally well, never a wall: the search still looks everywhere.
+classifier's probabilities over its 24 classes, and, where the roll is freed, a Gaussian around
+the roll told (0° unless told: a photo is taken about level). Either is a preference among views
+the marks fit about equally well, never a wall: the search still looks everywhere.
 """
 from __future__ import annotations
 
@@ -31,8 +32,9 @@ class ViewPrior:
         floor: the share of a uniform prior mixed into the classifier's (a confident but wrong
             classifier does not veto a view).
         weight: a factor on the whole −log prior (``FitOptions.view_prior_weight``).
-        roll_deg: the photo's roll, kept as told (one view cannot tell a degree of roll from a
-            slightly different car).
+        roll_deg: the roll told (the search keeps it; the fit frees it only where the marks pay
+            for it: :func:`carbody.fit.search.with_roll`).
+        roll_sd_deg: the roll's Gaussian about ``roll_deg`` (0: not priced, the roll kept).
     """
 
     azimuth_deg: float | None = None
@@ -44,6 +46,7 @@ class ViewPrior:
     floor: float = FIT_POLICY.classifier_floor
     weight: float = 1.0
     roll_deg: float = 0.0
+    roll_sd_deg: float = 0.0
 
     @classmethod
     def told(cls, view: View, policy: FitPolicy = FIT_POLICY, weight: float = 1.0) -> "ViewPrior":
@@ -61,9 +64,11 @@ class ViewPrior:
                    policy.classifier_floor, weight)
 
     @classmethod
-    def uniform(cls, policy: FitPolicy = FIT_POLICY, elevation_deg: float = 0.0) -> "ViewPrior":
-        """No view told: every azimuth alike, the elevation a photo's."""
-        return cls(None, policy.view_prior_sd_deg, float(elevation_deg), policy.elevation_prior_sd_deg)
+    def uniform(cls, policy: FitPolicy = FIT_POLICY, elevation_deg: float = 0.0,
+                roll_deg: float = 0.0) -> "ViewPrior":
+        """No view told: every azimuth alike, the elevation and roll a photo's."""
+        return cls(None, policy.view_prior_sd_deg, float(elevation_deg), policy.elevation_prior_sd_deg,
+                   roll_deg=float(roll_deg))
 
     @property
     def start(self) -> View:
@@ -79,6 +84,8 @@ class ViewPrior:
         if self.weight == 0:
             return 0.0
         nats = 0.5 * ((view.elevation - self.elevation_deg) / self.elevation_sd_deg) ** 2
+        if self.roll_sd_deg > 0:
+            nats += 0.5 * ((view.roll - self.roll_deg) / self.roll_sd_deg) ** 2
         if self.azimuth_deg is not None:
             kappa = 1.0 / np.radians(self.azimuth_sd_deg) ** 2
             nats += kappa * (1.0 - np.cos(np.radians(view.azimuth - self.azimuth_deg)))
