@@ -1,11 +1,12 @@
 """A tilted photo: the fit that finds the camera's roll against one that keeps it level.
 
-Each of the library's cars (every ``--every``-th) is left out and photographed (orthographic, SPEC's
-camera) at each of ``--azimuths`` from ``--elevation`` with the camera rolled by each of
-``--rolls``. Its visible keypoints get ``--noise`` px of click noise on a 1000 px wide image
-and are fitted with nothing told but the true wheelbase, twice: as ``carbody fit`` does (the
-roll refined where the marks pay for it, :func:`carbody.fit.search.with_roll`) and with the
-roll kept level (``FitPolicy.roll_range_deg`` 0, the fit before). Per roll it prints the mean
+Each of the library's cars (every ``--every``-th) is left out and photographed (orthographic,
+SPEC's camera) at each of ``--azimuths`` from ``--elevation`` with the camera rolled by each of
+``--rolls``. Its visible keypoints (the car 900 px wide, or 500 px high, on a 1000 × 600 px
+photo) get ``--noise`` px of click noise. They are fitted with nothing told but the true
+wheelbase, twice: as ``carbody fit`` does (the roll refined where the marks pay for it,
+:func:`carbody.fit.search.with_roll`) and with the roll kept level (``FitPolicy.roll_range_deg``
+0, the fit before). Per roll it prints the mean
 3D keypoint error (mm), the median azimuth error and the median roll found; per roll and
 azimuth the mean error of both fits.
 
@@ -47,7 +48,7 @@ def run_template(args: tuple) -> list[dict]:
                 slots = visible_slots(view, truth)
                 points = np.array([truth[s.point_index] * s.sign for s in slots])
                 uv = project(points, view)
-                scale = 900.0 / max(np.ptp(uv[:, 0]), 1e-9)
+                scale = min(900.0 / max(np.ptp(uv[:, 0]), 1e-9), 500.0 / max(np.ptp(uv[:, 1]), 1e-9))
                 uv = (uv - (uv.min(axis=0) + uv.max(axis=0)) / 2) * scale + [500.0, 300.0]
                 rng = np.random.default_rng([t, int(azimuth), int(round(roll * 10))])
                 marks = {s.name: tuple(p) for s, p in zip(slots, uv + rng.normal(0.0, noise, uv.shape))}
