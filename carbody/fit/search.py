@@ -121,12 +121,12 @@ def with_roll(scorer: Scorer, level: Hypothesis, free: tuple[str, ...]) -> Hypot
     bends the car (``benchmarks/bench_roll.py``). But the marks of a level photo also fit a roll
     of a tenth of a degree a little better, and the view and the car's width trade with it: with
     the roll always free, level renders came out 37 mm off, not 25 (``bench_fit_accuracy.py
-    --elevation 10 --known-only``, the refined rows). So the roll is kept only when its evidence beats the level
-    view's with the roll integrated out (a Laplace approximation). The score is read at the
-    level view and a step either side of it (the car solved afresh at each, the roll's prior
-    in); a parabola through them gives the roll's best value, what it gains there, and its
-    spread σ_roll. The gain must exceed the Occam factor log(σ_prior / σ_roll). Then every angle
-    is polished from that roll; the better of that and ``level`` is kept."""
+    --elevation 10 --known-only``, the refined rows). So the roll is kept only when its evidence
+    beats the level view's with the roll integrated out (a Laplace approximation). The score is
+    read at the level view and a step either side of it (the car solved afresh at each, the
+    roll's prior in); a parabola through them gives the roll's best value, what it gains there,
+    and its spread σ_roll. The gain must exceed the Occam factor log(σ_prior / σ_roll). Then
+    every angle is polished from that roll; the better of that and ``level`` is kept."""
     from dataclasses import replace
 
     from carbody.errors import AngleError, FitError
