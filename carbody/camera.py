@@ -24,8 +24,8 @@ from carbody.errors import AngleError
 #: Elevations this close to ±90° (straight down/up) have no image-right direction.
 MAX_ABS_ELEVATION_DEG = 85.0
 
-#: A photo rolled further than this is on its side or upside down: the fit refines the roll it
-#: is told only by a few degrees (``FitPolicy.roll_range_deg``), so such a start is refused, not fitted.
+#: A photo rolled further than this is on its side or upside down: the fit moves the roll it is
+#: told by at most ``FitPolicy.roll_range_deg``, so such a start is refused, not fitted.
 MAX_ABS_ROLL_DEG = 90.0
 
 

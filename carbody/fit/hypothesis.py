@@ -154,10 +154,15 @@ class Scorer:
         """How many solves this scorer and its copies have made."""
         return self._solves[0]
 
-    def with_marks(self, marks: Marks) -> "Scorer":
-        """The same scorer for renamed or turned marks (prepared models shared)."""
+    def _copy(self) -> "Scorer":
+        """A shallow copy (the prepared models shared), for the ``with_*`` variants to change."""
         other = object.__new__(Scorer)
         other.__dict__.update(self.__dict__)
+        return other
+
+    def with_marks(self, marks: Marks) -> "Scorer":
+        """The same scorer for renamed or turned marks (prepared models shared)."""
+        other = self._copy()
         other.marks = marks
         row = {n: i for i, n in enumerate(self._facing.names)}
         other._rows = np.array([row[n] for n in marks.names])
@@ -165,8 +170,7 @@ class Scorer:
 
     def with_prior(self, prior: ViewPrior) -> "Scorer":
         """The same scorer under another view prior."""
-        other = object.__new__(Scorer)
-        other.__dict__.update(self.__dict__)
+        other = self._copy()
         other.prior = prior
         return other
 
@@ -174,8 +178,7 @@ class Scorer:
         """The same scorer with mark ``index`` left out of every hypothesis too (and those it
         already leaves out): a misplaced click found by trying each mark out
         (:func:`carbody.fit.robust.left_out_in_turn`)."""
-        other = object.__new__(Scorer)
-        other.__dict__.update(self.__dict__)
+        other = self._copy()
         other.excluded = np.zeros(len(self.marks.slots), dtype=bool) if self.excluded is None else self.excluded.copy()
         other.excluded[index] = True
         return other
@@ -183,8 +186,7 @@ class Scorer:
     def with_noise(self, factor: float, field_scale: float | None = None) -> "Scorer":
         """The same scorer with the marks' noise at ``factor`` × λ's and the joint field at
         ``field_scale`` × its amplitude (default as it is)."""
-        other = object.__new__(Scorer)
-        other.__dict__.update(self.__dict__)
+        other = self._copy()
         other.noise_factor, other.lam = float(factor), self.options.prior_weight * float(factor) ** 2
         if field_scale is not None and self.options.method != "paper" and self.options.joint_field:
             other.field_scale = float(field_scale)

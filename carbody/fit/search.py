@@ -119,9 +119,9 @@ def with_roll(scorer: Scorer, level: Hypothesis, free: tuple[str, ...]) -> Hypot
 
     A photo taken by hand is seldom level, and a tilt left to the other angles turns the view and
     bends the car (``benchmarks/bench_roll.py``). But the marks of a level photo also fit a roll
-    of a tenth of a degree a little better, and the view and the car's width trade with it: with
-    the roll always free, level renders came out 37 mm off, not 25 (``bench_fit_accuracy.py
-    --elevation 10 --known-only``, the refined rows). So the roll is kept only when its evidence
+    of a tenth of a degree a little better, and the view and the car's width trade with it: a
+    trial with the roll free in every refinement (not committed) put level renders 37 mm off, not
+    25 (``bench_fit_accuracy.py --elevation 10 --known-only``, the refined rows). So the roll is kept only when its evidence
     beats the level view's with the roll integrated out (a Laplace approximation). The score is
     read at the level view and a step either side of it (the car solved afresh at each, the
     roll's prior in); a parabola through them gives the roll's best value, what it gains there,
