@@ -100,6 +100,11 @@ Definitions (per photo):
   0.3° off the truth at the median. Per photo the rims' mean; in summary, over the photos with
   one: how many lie within 15° of the estimate, against the view found on the same photos; the
   median differences rims − estimate and view found − rims; the rims' lean from the estimate.
+- **Arches** (:func:`arches_per_wheelbase`): each fitted wheel arch's radius (its top above the
+  hub, tyre and clearance) over the fitted wheelbase, front and rear. The library's templates,
+  sized to published cars, span a range of it (:func:`library_arch_range`); in summary, the
+  fitted range and the photos with an arch outside the templates'. The scalings that expand the
+  library stretch the arches with the body, so a fit can leave that range.
 - **Hubs found**: the wheels' hubs the fit found in the photo (``report["fit"]["wheels"]``),
   counted per photo and in all.
 - **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``
@@ -118,6 +123,7 @@ hood magenta), the annotated wheel centres as white dots joined to their project
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import os
@@ -508,6 +514,27 @@ def fitted_width_mm(control_points: np.ndarray, samples: int = 200) -> float:
     return float(2.0 * np.abs(sample_curves(control_points, samples)[..., 0]).max())
 
 
+def arches_per_wheelbase(control_points: np.ndarray) -> list[float]:
+    """[front, rear]: each wheel arch's radius (its top above the hub) over the wheelbase
+    (:func:`carbody.fit.wheels.arch_radii`, the left wheels)."""
+    from carbody.fit.wheels import arch_radii, hub_points
+
+    hubs = hub_points(control_points)
+    wheelbase = float(np.linalg.norm(hubs[2, 1:] - hubs[0, 1:]))
+    return [float(r) / wheelbase for r in arch_radii(control_points)[[0, 2]]]
+
+
+@functools.lru_cache(maxsize=1)
+def library_arch_range() -> tuple[float, float]:
+    """(least, most) arch radius over wheelbase among the library's templates, as sized."""
+    from carbody.library import load_library
+
+    library = load_library()
+    firsts = [int(np.flatnonzero(library.template_index == t)[0]) for t in range(len(library.template_names))]
+    values = [v for k in firsts for v in arches_per_wheelbase(library.S[:, k].reshape(-1, 3))]
+    return min(values), max(values)
+
+
 def pct_error(fitted: float, published: float | None) -> float | None:
     return None if not published else 100.0 * (fitted / published - 1.0)
 
@@ -543,7 +570,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "rims_view_deg": None, "rims": None, "rims_lean_deg": None, "rims_diff_deg": None,
            "fit_rims_diff_deg": None,
            "fallback": None, "camera_check_px": None,
-           "mirrored_half": None, "stage_s": None}
+           "mirrored_half": None, "stage_s": None, "arches_per_wheelbase": None}
     if outcome != "body":
         return row
     report, wireframe = fitted(folder)
@@ -557,7 +584,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
                mirrored_half=bool(cp[:, 0].max() < MIRRORED_MM < -cp[:, 0].min()),
                fallback=report["fit_fallback"],
                camera_check_px=camera_check_px(report, photo.meta["keypoints"]),
-               stage_s=report.get("timings_s"), hubs_found=len((fit.get("wheels") or {}).get("wheels") or []))
+               stage_s=report.get("timings_s"), arches_per_wheelbase=arches_per_wheelbase(cp), hubs_found=len((fit.get("wheels") or {}).get("wheels") or []))
     if row["view_estimate_deg"] is not None:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
         row["view_lean_deg"] = view_lean_deg(found, row["view_estimate_deg"])
@@ -893,6 +920,8 @@ def summarise(rows: list[dict]) -> dict:
     spread = [(abs(math.log1p(r["wheelbase_err_pct"] / 100)), r["wheelbase_spread_pct"] / 100) for r in rows
               if r["wheelbase_err_pct"] is not None and r["wheelbase_spread_pct"] is not None]
     times = [r["seconds"] for r in rows]
+    arches = [r["arches_per_wheelbase"] for r in rows if r.get("arches_per_wheelbase")]
+    low, high = library_arch_range()
     cpu = [r["cpu_seconds"] for r in rows if r["cpu_seconds"] is not None]
     return {
         "photos": n, "outcomes": counts, "body_pct": 100.0 * counts["body"] / n if n else None,
@@ -930,6 +959,9 @@ def summarise(rows: list[dict]) -> dict:
         "tyre_own_measured": sum(r["tyre_own_pct"] is not None for r in rows),
         "centroid_to_hub_measured": sum(r["centroid_to_hub_pct"] is not None for r in rows),
         "photos_with_hubs": sum(bool(r["hubs_found"]) for r in rows),
+        "library_arch_range": [low, high], "arches_measured": len(arches),
+        "fitted_arch_range": [min(map(min, arches)), max(map(max, arches))] if arches else None,
+        "arches_outside_library": sum(min(a) < low or max(a) > high for a in arches),
         "hubs_found": sum(r["hubs_found"] or 0 for r in rows),
         "median_time_s": statistics.median(times) if times else None, "max_time_s": max(times, default=None),
         "median_cpu_s": statistics.median(cpu) if cpu else None, "max_cpu_s": max(cpu, default=None),
@@ -1018,6 +1050,10 @@ def summary_table(s: dict) -> str:
              f"{fmt(s['median_tyre_dist_pct'], '.1f') or '–'} (of {s['tyre_dist_measured']}) |",
              f"| its own error: the same with our tyres on the hubs the fit found, % | "
              f"{fmt(s['median_tyre_own_pct'], '.1f') or '–'} (of {s['tyre_own_measured']}) |",
+             "| wheel arches: radius ÷ wheelbase, fitted range; photos with an arch outside the templates' "
+             f"range ({s['library_arch_range'][0]:.3f}–{s['library_arch_range'][1]:.3f}) | "
+             + (f"{s['fitted_arch_range'][0]:.3f}–{s['fitted_arch_range'][1]:.3f}; "
+                f"{s['arches_outside_library']} of {s['arches_measured']} |" if s["fitted_arch_range"] else "– |"),
              f"| photos with hubs found in them (hubs in all) | {s['photos_with_hubs']} ({s['hubs_found']}) |",
              f"| time per photo (wall), median / max | {fmt(s['median_time_s'], '.1f')} / "
              f"{fmt(s['max_time_s'], '.1f')} s |",

@@ -120,6 +120,19 @@ def test_the_tyres_are_cylinders_on_the_fitted_hubs(bench, templates):
         assert 25.0 < np.ptp(uv[:, 1]) / 2 < 40.0                                   # a tyre's radius, 250–400 mm
 
 
+def test_an_arch_grows_with_the_ride_height_and_the_templates_span_a_real_range(bench, templates):
+    from carbody.fit.wheels import hub_points, ride_height_direction
+
+    cp = templates[0][1].control_points
+    front, rear = bench.arches_per_wheelbase(cp)
+    low, high = bench.library_arch_range()
+    assert 0.1 < low <= min(front, rear) and max(front, rear) <= high < 0.2  # 300–450 mm at a 2.7 m wheelbase
+    hubs = hub_points(cp)
+    wheelbase_mm = float(np.linalg.norm(hubs[2, 1:] - hubs[0, 1:]))
+    raised = bench.arches_per_wheelbase(cp + 50.0 * ride_height_direction().reshape(-1, 3))  # 50 mm higher
+    assert raised == pytest.approx([front + 50.0 / wheelbase_mm, rear + 50.0 / wheelbase_mm], rel=1e-6)
+
+
 def test_a_rear_wheels_rim_reads_the_view_the_example_was_rendered_at(bench, example_reconstruction):
     """The example was rendered at 30°: its rear wheel's rim, read from views 5° and 10° off
     the one found (the hub kept where it was found), comes back to 30°; and a view turned by
@@ -190,6 +203,7 @@ def test_metrics_are_finite_where_defined(bench_run):
             assert iou is None or 0.0 <= iou <= 1.0
         assert (r["wheel_dist_pct"] is None) == (r["wheels_annotated"] == 0)
         assert r["wheel_dist_pct"] is None or math.isfinite(r["wheel_dist_pct"])
+        assert all(0.05 < a < 0.3 for a in r["arches_per_wheelbase"])  # an arch, not a point or the whole side
         assert (r["tyre_dist_pct"] is None) == (r["wheels_annotated"] == 0)
         assert r["tyre_dist_pct"] is None or 0.0 <= r["tyre_dist_pct"] < 100.0
         # the instrument projects with the fit's own camera: the marks land where the fit says
