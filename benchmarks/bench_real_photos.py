@@ -530,8 +530,8 @@ def library_arch_range() -> tuple[float, float]:
     from carbody.library import load_library
 
     library = load_library()
-    firsts = [int(np.flatnonzero(library.template_index == t)[0]) for t in range(len(library.template_names))]
-    values = [v for k in firsts for v in arches_per_wheelbase(library.S[:, k].reshape(-1, 3))]
+    values = [v for t in range(len(library.template_names))
+              for v in arches_per_wheelbase(library.S[:, library.original(t)].reshape(-1, 3))]
     return min(values), max(values)
 
 
@@ -584,7 +584,8 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
                mirrored_half=bool(cp[:, 0].max() < MIRRORED_MM < -cp[:, 0].min()),
                fallback=report["fit_fallback"],
                camera_check_px=camera_check_px(report, photo.meta["keypoints"]),
-               stage_s=report.get("timings_s"), arches_per_wheelbase=arches_per_wheelbase(cp), hubs_found=len((fit.get("wheels") or {}).get("wheels") or []))
+               stage_s=report.get("timings_s"), arches_per_wheelbase=arches_per_wheelbase(cp),
+               hubs_found=len((fit.get("wheels") or {}).get("wheels") or []))
     if row["view_estimate_deg"] is not None:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
         row["view_lean_deg"] = view_lean_deg(found, row["view_estimate_deg"])
