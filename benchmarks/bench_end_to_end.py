@@ -14,6 +14,8 @@ some templates (not these photos): rows are split by whether it ever saw the car
 
 Run: python benchmarks/bench_end_to_end.py [--quick] [--view-known] [--loose-fields] [--no-blend] [--workers 2]
     [--[no-]wheels] [--json out.json]
+     python benchmarks/bench_end_to_end.py --tables out.json [--first N]   (a run's tables again; with --first,
+         only the runs of the library's first N templates: the cars of a smaller library, left out of this one)
 """
 from __future__ import annotations
 
@@ -171,6 +173,18 @@ def by_view(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def by_car(rows: list[dict]) -> str:
+    """Each left-out car's mean 3D error over its views, worst first."""
+    ok = [r for r in rows if r["error"] is None]
+    cars = {r["template"] for r in ok}
+    errors = {c: [r["mean_mm"] for r in ok if r["template"] == c] for c in cars}
+    lines = ["| car left out | views | mean 3D error (mm) | median | worst view |", "|---|---|---|---|---|"]
+    for c in sorted(cars, key=lambda c: -np.mean(errors[c])):
+        e = errors[c]
+        lines.append(f"| {c} | {len(e)} | {np.mean(e):.1f} | {np.median(e):.1f} | {max(e):.1f} |")
+    return "\n".join(lines)
+
+
 def failures(rows: list[dict]) -> str:
     bad = [r for r in rows if r["error"] is not None]
     return "\n".join(f"- {r['template']} at {r['view']}°: {r['error']}" for r in bad) or "- none"
@@ -194,6 +208,20 @@ def fallbacks(rows: list[dict]) -> str:
                      f"blended back ({r['mean_mm']:.0f} mm)" for r in made) or "- none"
 
 
+def print_tables(rows: list[dict], seen: set[str]) -> None:
+    print(summary(rows, seen))
+    print("\nBy view (all cars):\n")
+    print(by_view(rows))
+    print("\nBy car (every view):\n")
+    print(by_car(rows))
+    print("\nRuns that stopped:\n")
+    print(failures(rows))
+    print("\nThe fit's own verdict (a note when no car fits the marks):\n")
+    print(poor_fits(rows))
+    print("\nRuns surfaced from a stiffer fit (the first fit's wireframe had a region crossing itself):\n")
+    print(fallbacks(rows))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="3 templates, 6 views")
@@ -206,9 +234,22 @@ def main(argv=None) -> int:
                     help="a stiffer refit is not blended back toward the fit")
     ap.add_argument("--wheels", action=argparse.BooleanOptionalAction, default=None,
                     help="find the wheels' hubs in the picture and fit them (default: as reconstruct's default)")
+    ap.add_argument("--tables", metavar="JSON", help="print the tables of a run's --json file, running nothing")
+    ap.add_argument("--first", type=int, metavar="N", help="with --tables: only the library's first N templates' runs")
     args = ap.parse_args(argv)
     from carbody.library import load_library
     from carbody.view.predict import load_classifier
+
+    if args.tables:
+        with open(args.tables) as f:
+            rows = json.load(f)
+        if args.first:
+            first = set(load_library().template_names[:args.first])
+            rows = [r for r in rows if r["template"] in first]
+        _, meta = load_classifier(None)
+        seen = {r["template"] for r in rows} - set(meta["dataset"]["validation_templates"])
+        print_tables(rows, seen)
+        return 0
 
     n = len(load_library().template_names)
     templates = [0, 5, 9] if args.quick else list(range(n))
@@ -227,15 +268,7 @@ def main(argv=None) -> int:
           f"{'; stiffer refits not blended back' if args.no_blend else ''}"
           f"{'' if args.wheels is None else '; wheels ' + ('on' if args.wheels else 'off')}; "
           f"{os.cpu_count()} cores, {args.workers} workers ({time.perf_counter() - start:.0f} s)\n")
-    print(summary(rows, seen))
-    print("\nBy view (all cars):\n")
-    print(by_view(rows))
-    print("\nRuns that stopped:\n")
-    print(failures(rows))
-    print("\nThe fit's own verdict (a note when no car fits the marks):\n")
-    print(poor_fits(rows))
-    print("\nRuns surfaced from a stiffer fit (the first fit's wireframe had a region crossing itself):\n")
-    print(fallbacks(rows))
+    print_tables(rows, seen)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)
