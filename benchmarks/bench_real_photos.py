@@ -109,6 +109,11 @@ Definitions (per photo):
   counted per photo and in all.
 - **Fallback**: the run needed a stiffer fit to surface its body (``report["fit_fallback"]``
   not null).
+- **Targets** (issue 24's, :data:`TARGETS`): each measured, and how often a new set of photos
+  like these would meet it. The photos are drawn again with replacement as many times
+  (``TARGET_DRAWS``, seeded) and the figure is recomputed on each draw; the share of draws that
+  meet the target. A share near 50 % means the target sits on the figure: another set of such
+  photos could go either way. Per-photo time limits are counted photo by photo instead.
 - **Camera check**: the marks kept by the fit, reprojected here from ``keypoints_mm`` with the
   report's camera, must land ``residual_px_mean`` from the marks on average (in the JSON rows as
   ``camera_check_px``: the difference; a large one means the instrument and the fit disagree on
@@ -977,6 +982,71 @@ def summarise(rows: list[dict]) -> dict:
     }
 
 
+#: Issue 24's targets on the photos' figures: (label, the statistic of a list of rows, the
+#: comparison, the bound, the format).
+TARGETS = (
+    ("photos with a body", lambda rs: 100.0 * np.mean([r["outcome"] == "body" for r in rs]), ">=", 90.0, ".0f", "%"),
+    (f"view within {VIEW_OK_DEG:.0f}° of the estimate",
+     lambda rs: 100.0 * np.mean([r["view_diff_deg"] is not None and r["view_diff_deg"] <= VIEW_OK_DEG for r in rs]),
+     ">=", 90.0, ".0f", "%"),
+    ("median |length| error", lambda rs: _median_abs(rs, "length_err_pct"), "<=", 5.0, ".1f", "%"),
+    ("median |wheelbase| error", lambda rs: _median_abs(rs, "wheelbase_err_pct"), "<=", 5.0, ".1f", "%"),
+    ("median IoU windshield", lambda rs: median_or_none(r["iou"]["windshield"] for r in rs), ">=", 0.75, ".2f", ""),
+    ("median IoU hood", lambda rs: median_or_none(r["iou"]["hood"] for r in rs), ">=", 0.70, ".2f", ""),
+    ("median wheel-centre distance", lambda rs: median_or_none(r["wheel_dist_pct"] for r in rs), "<=", 2.0, ".1f", "%"),
+)
+#: Draws of the photos for the targets' odds (:func:`target_odds`).
+TARGET_DRAWS = 2000
+#: Per photo: fit plus surfaces (the report's stage times) and the whole fresh process, s.
+FIT_AND_SURFACES_LIMIT_S, FRESH_PROCESS_LIMIT_S = 3.0, 8.0
+
+
+def _median_abs(rows: list[dict], key: str) -> float | None:
+    return median_or_none(abs(r[key]) if r[key] is not None else None for r in rows)
+
+
+def target_odds(rows: list[dict], draws: int = TARGET_DRAWS, seed: int = 0) -> list[dict]:
+    """Each of :data:`TARGETS` on ``rows``: its value, whether it is met, and the share of
+    ``draws`` sets of as many photos drawn from them with replacement that meet it. Then the
+    per-photo time limits, counted over the photos."""
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, len(rows), size=(draws, len(rows))) if rows else np.zeros((0, 0), int)
+    met = {">=": lambda v, b: v is not None and bool(v >= b), "<=": lambda v, b: v is not None and bool(v <= b)}
+    out = []
+    for label, stat, op, bound, spec, unit in TARGETS:
+        value = stat(rows) if rows else None
+        value = None if value is None else float(value)
+        odds = float(np.mean([met[op](stat([rows[i] for i in pick]), bound) for pick in picks])) if rows else None
+        out.append({"target": label, "value": value, "op": op, "bound": bound, "met": met[op](value, bound),
+                    "draws_met": odds, "format": spec, "unit": unit})
+    staged = [r["stage_s"]["fit"] + r["stage_s"]["surfaces"] for r in rows
+              if r.get("stage_s") and "surfaces" in r["stage_s"]]
+    for label, values, bound in ((f"fit + surfaces ≤ {FIT_AND_SURFACES_LIMIT_S:g} s a photo", staged,
+                                  FIT_AND_SURFACES_LIMIT_S),
+                                 (f"a fresh process ≤ {FRESH_PROCESS_LIMIT_S:g} s a photo",
+                                  [r["seconds"] for r in rows], FRESH_PROCESS_LIMIT_S)):
+        within = int(sum(v <= bound for v in values))
+        out.append({"target": label, "value": max(values, default=None), "op": "<=", "bound": bound,
+                    "met": bool(values) and within == len(values), "within": within, "of": len(values),
+                    "draws_met": None, "format": ".1f", "unit": " s"})
+    return out
+
+
+def targets_table(targets: list[dict]) -> str:
+    lines = ["| target | measured | met | sets of photos like these drawn again: share meeting it |",
+             "|---|---|---|---|"]
+    for t in targets:
+        bound = f"{t['op'].replace('>=', '≥').replace('<=', '≤')} {t['bound']:{t['format']}}{t['unit']}"
+        value = "–" if t["value"] is None else f"{t['value']:{t['format']}}{t['unit']}"
+        if "within" in t:
+            value = f"{t['within']} of {t['of']} within (max {value})"
+            odds = "– (per photo)"
+        else:
+            odds = f"{100 * t['draws_met']:.0f} %" if t["draws_met"] is not None else "–"
+        lines.append(f"| {t['target']} ({bound}) | {value} | {'yes' if t['met'] else 'no'} | {odds} |")
+    return "\n".join(lines)
+
+
 def rims_summary(rows: list[dict]) -> dict:
     """The rims' view against the estimate and the view found, over the photos where the rims
     gave one (:func:`rims_view`)."""
@@ -1266,6 +1336,10 @@ def main(argv: list[str] | None = None) -> int:
     if messages:
         print(messages + "\n")
     print(summary_table(summary))
+    targets = target_odds(rows)
+    print(f"\nIssue 24's targets, and how often {TARGET_DRAWS} sets of as many photos drawn from these "
+          "(with replacement) meet them:\n")
+    print(targets_table(targets))
     checks = estimate_check(photos, rows, args.out) if args.check_estimates else None
     if checks:
         print("\nViews found more than 15° from the estimate, against the estimate kept (found / at the "
@@ -1275,7 +1349,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\ncontact sheet: {sheet}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"machine": machine, "rows": rows, "summary": summary,
+        args.json.write_text(json.dumps({"machine": machine, "rows": rows, "summary": summary, "targets": targets,
                                          "estimate_checks": checks,
                                          "contact_sheet": None if sheet is None else str(sheet)}, indent=1))
     return 0

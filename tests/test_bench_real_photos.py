@@ -54,6 +54,27 @@ def test_the_lean_is_signed_toward_the_cars_nearer_end_on_three_quarter_views_on
     assert bench.view_lean_deg(5.0, 0.0) is None and bench.view_lean_deg(85.0, 90.0) is None
 
 
+def _row(wheel_pct: float, fit_s: float = 1.0) -> dict:
+    return {"outcome": "body", "view_diff_deg": 5.0, "length_err_pct": 1.0, "wheelbase_err_pct": -1.0,
+            "iou": {"windshield": 0.9, "hood": 0.8}, "wheel_dist_pct": wheel_pct,
+            "stage_s": {"fit": fit_s, "surfaces": 0.5}, "seconds": 5.0}
+
+
+def test_a_target_met_by_every_photo_holds_on_every_draw_and_one_on_the_median_on_about_half(bench):
+    """The targets' odds: the photos drawn again with replacement, each figure recomputed."""
+    clear = {t["target"]: t for t in bench.target_odds([_row(1.0) for _ in range(20)], draws=400)}
+    wheels = next(k for k in clear if k.startswith("median wheel-centre"))
+    assert clear[wheels]["met"] and clear[wheels]["draws_met"] == 1.0
+    # half the photos at 1 %, half at 3 %: the median sits on the 2 % target
+    split = {t["target"]: t for t in bench.target_odds([_row(1.0) for _ in range(10)] + [_row(3.0)] * 10,
+                                                       draws=400)}
+    assert 0.3 < split[wheels]["draws_met"] < 0.7
+    slow = {t["target"]: t for t in bench.target_odds([_row(1.0)] * 9 + [_row(1.0, fit_s=2.9)], draws=50)}
+    timed = next(t for k, t in slow.items() if k.startswith("fit + surfaces"))
+    assert (timed["within"], timed["of"], timed["met"]) == (9, 10, False)  # 2.9 + 0.5 s is over 3 s
+    assert "| median IoU hood (≥ 0.70) | 0.80 | yes | 100 % |" in bench.targets_table(list(clear.values()))
+
+
 def test_a_region_of_a_template_seen_from_the_front_is_the_union_of_its_halves(bench, templates):
     """The windshield's left loop and its mirror, projected, make one symmetric outline whose
     width is the template's windshield base (a_pillar_base on both sides)."""
