@@ -4,9 +4,8 @@ tables read back from the run's rows."""
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+from tests.conftest import REPO
 
 
 def bench():
