@@ -240,23 +240,19 @@ def main(argv=None) -> int:
     from carbody.library import load_library
     from carbody.view.predict import load_classifier
 
+    names = load_library().template_names
+    _, meta = load_classifier(None)
+    seen = set(names) - set(meta["dataset"]["validation_templates"])
     if args.tables:
         with open(args.tables) as f:
             rows = json.load(f)
         if args.first:
-            first = set(load_library().template_names[:args.first])
-            rows = [r for r in rows if r["template"] in first]
-        _, meta = load_classifier(None)
-        seen = {r["template"] for r in rows} - set(meta["dataset"]["validation_templates"])
+            rows = [r for r in rows if r["template"] in set(names[:args.first])]
         print_tables(rows, seen)
         return 0
 
-    n = len(load_library().template_names)
-    templates = [0, 5, 9] if args.quick else list(range(n))
+    templates = [0, 5, 9] if args.quick else list(range(len(names)))
     views = (0, 30, 90, 150, 210, 300) if args.quick else VIEWS
-    _, meta = load_classifier(None)
-    never_seen = set(meta["dataset"]["validation_templates"])
-    seen = set(load_library().template_names) - never_seen
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=set_up_worker, initargs=(args.loose_fields, not args.no_blend)) as pool:
         rows = [r for part in pool.map(run_template, [(t, views, args.view_known, args.wheels) for t in templates]) for r in part]

@@ -906,6 +906,10 @@ def median_or_none(values) -> float | None:
     return statistics.median(vals) if vals else None
 
 
+def _median_abs(rows: list[dict], key: str) -> float | None:
+    return median_or_none(abs(r[key]) if r[key] is not None else None for r in rows)
+
+
 def summarise(rows: list[dict]) -> dict:
     n = len(rows)
     counts = {o: sum(r["outcome"] == o for r in rows) for o in OUTCOMES}
@@ -913,8 +917,6 @@ def summarise(rows: list[dict]) -> dict:
     ok = sum(r["view_diff_deg"] <= VIEW_OK_DEG for r in viewed)
     leans = [r["view_lean_deg"] for r in rows if r.get("view_lean_deg") is not None]
 
-    def med_abs(key):
-        return median_or_none(abs(r[key]) if r[key] is not None else None for r in rows)
     # the length split into the proportions the photo shows (length ÷ wheelbase) and the
     # absolute size (the wheelbase), which one photo cannot show: the library's guess
     sized = [r for r in rows if r["length_err_pct"] is not None and r["wheelbase_err_pct"] is not None]
@@ -936,9 +938,9 @@ def summarise(rows: list[dict]) -> dict:
         "median_view_lean_deg": median_or_none(leans), "view_lean_measured": len(leans),
         "view_leans_to_end": sum(v < -LEAN_NOTED_DEG for v in leans),
         "view_leans_to_side": sum(v > LEAN_NOTED_DEG for v in leans),
-        "median_abs_length_err_pct": med_abs("length_err_pct"),
-        "median_abs_width_err_pct": med_abs("width_err_pct"),
-        "median_abs_wheelbase_err_pct": med_abs("wheelbase_err_pct"),
+        "median_abs_length_err_pct": _median_abs(rows, "length_err_pct"),
+        "median_abs_width_err_pct": _median_abs(rows, "width_err_pct"),
+        "median_abs_wheelbase_err_pct": _median_abs(rows, "wheelbase_err_pct"),
         "size_split_measured": len(sized),
         "median_abs_length_over_wheelbase_err_pct": median_or_none(abs(p) for p in proportion),
         "median_signed_wheelbase_err_pct": median_or_none(r["wheelbase_err_pct"] for r in sized),
@@ -999,10 +1001,6 @@ TARGETS = (
 TARGET_DRAWS = 2000
 #: Per photo: fit plus surfaces (the report's stage times) and the whole fresh process, s.
 FIT_AND_SURFACES_LIMIT_S, FRESH_PROCESS_LIMIT_S = 3.0, 8.0
-
-
-def _median_abs(rows: list[dict], key: str) -> float | None:
-    return median_or_none(abs(r[key]) if r[key] is not None else None for r in rows)
 
 
 def target_odds(rows: list[dict], draws: int = TARGET_DRAWS, seed: int = 0) -> list[dict]:
