@@ -26,7 +26,7 @@ STAGES = ("view", "fit", "surfaces")
 
 #: Stiffer fits tried in turn when a region of the fitted wireframe cannot be surfaced (its
 #: outline crosses itself: a car far from every template, as the leave-one-out pickup seen from
-#: behind; BENCHMARKS.md "End to end"): the library's span without the local field and the
+#: behind; docs/end_to_end.md): the library's span without the local field and the
 #: deformation, then the paper's plain mix of library cars; the first that surfaces is blended
 #: back toward the fit as far as its body still surfaces (:func:`_blended_toward`).
 SURFACE_FALLBACKS = (
@@ -480,7 +480,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
 def _load_libraries() -> None:
     """Load what the fit and the surfaces use, once per process: OCCT (one large library, loaded
     by its first module) and scipy's optimisers. In a fresh process this costs about 1.1 s of CPU
-    (BENCHMARKS.md, "Real photos"); timed apart, the stages' times are a photo's own work."""
+    (docs/real_photos.md); timed apart, the stages' times are a photo's own work."""
     import OCP.TopoDS  # noqa: F401
     import scipy.optimize  # noqa: F401
 
@@ -490,7 +490,7 @@ def _blended_toward(fit, stiff, stiff_body):
     the car frame, and wheelbases) whose body still surfaces (``BLEND_HALVINGS``), seen by the
     camera of either that puts it nearer the marks; ``stiff`` itself (share 0) when none does.
     Crossing is gradual in the share, so much of the fit's match to the marks is kept where only
-    a corner of it crossed (BENCHMARKS.md "End to end": 12–88 % kept, 70–232 mm against
+    a corner of it crossed (docs/end_to_end.md: 12–88 % kept, 70–232 mm against
     117–255 mm for the stiffer fit alone)."""
     from dataclasses import replace
 

@@ -145,7 +145,7 @@ class FitPolicy:
 
     #: −log evidence per marked coordinate above which no car near the view found fits the marks
     #: (``fits_poorly``): set between the leave-one-out cars' fits at their own views (≤ 6.1 with
-    #: 5 px of noise) and at their other end (≥ 34.9); BENCHMARKS.md.
+    #: 5 px of noise) and at their other end (≥ 34.9); docs/fit_accuracy.md.
     poor_fit_evidence: float = 10.0
 
     #: The fitted car misses the marks (``misses_marks``) when its mean residual exceeds this
@@ -156,7 +156,7 @@ class FitPolicy:
     #: real camera, miss the marks by more than its linearised camera said, by over this
     #: fraction of their spread (:meth:`~carbody.fit.hypothesis.Scorer.camera_holds`; a car
     #: bent toward the camera on a re-marked front view: 3.7; the real photos' own fits and the
-    #: renders' came out the same with the check, BENCHMARKS.md).
+    #: renders' came out the same with the check, docs/fit_accuracy.md).
     linearised_camera_spread: float = 0.25
 
     #: A fit is refused (``contradicts``: exit 2 unless forced) only where the marks contradict
@@ -173,7 +173,7 @@ class FitPolicy:
     #: Told the orthographic camera, a camera close by "fits far better" when its mean residual
     #: is at most this fraction of the orthographic one, or its −log evidence per coordinate is
     #: lower by more than ``closer_camera_evidence`` (a photo from a few metres fitted as if from
-    #: afar comes out distorted; BENCHMARKS.md: at most 0.32 on pictures from afar).
+    #: afar comes out distorted; docs/fit_accuracy.md: at most 0.32 on pictures from afar).
     closer_camera_gain: float = 0.6
     closer_camera_evidence: float = 1.0
 

@@ -30,7 +30,7 @@ def test_a_level_front_view_leaves_the_length_unknown_even_told_the_image_scale(
 
 def test_the_reference_told_the_offset_does_better_than_without_it(bench):
     """A level near-side view: the image offset trades against the car's width, so the reference
-    not told it does worse there (BENCHMARKS.md: 16 against 38 mm over the 14 cars at 75°)."""
+    not told it does worse there (docs/fit_accuracy.md: 16 against 38 mm over the 14 cars at 75°)."""
     told, = bench.run_template((9, (75,), 0.0, 1.0, True))
     untold, = bench.run_template((9, (75,), 0.0, 1.0, False))
     assert min(told["reference_mm"].values()) < min(untold["reference_mm"].values())

@@ -333,7 +333,7 @@ def test_expected_error_is_large_where_the_view_cannot_see(library, tmp_path):
 
 def test_expected_error_tracks_the_real_error(library, topology):
     """Over left-out cars and views, the fit's expected error ranks the cases as the real
-    error does and is of its size (BENCHMARKS.md measures it on the whole benchmark)."""
+    error does and is of its size (docs/fit_accuracy.md measures it on the whole benchmark)."""
     from scipy.stats import spearmanr
 
     kp = topology.keypoint_point_indices

@@ -10,7 +10,7 @@ Two fits, both :func:`carbody.fit.fit_wireframe` through its public options:
 - the **full fit**, when the page is idle: the default policy and the photo's own view prior
   (the classifier's, or the view the user picked), the fit ``carbody reconstruct --no-wheels``
   would make of these marks (reconstruct also fits the wheels' hubs it finds in the photo; on the
-  page that took more marks to reach the hand fit: BENCHMARKS.md). It replaces the quick one on
+  page that took more marks to reach the hand fit: docs/annotate.md). It replaces the quick one on
   the page when it lands.
 
 :func:`fit_payload` turns a fit into what the page draws (plain JSON): the projected wireframe
@@ -38,14 +38,14 @@ MIN_MARKS = 5
 #: refinement reaches. Against the full fit of the same marks (the example and three real
 #: photos, 6 marks to all), polishing with 10 solves instead of 15 took 15 % less processor
 #: time and landed as near (3 px in the median); a 45° step lands 9 px off. The benchmark
-#: measures how far the quick fit lands from the full one on every click (BENCHMARKS: annotate).
+#: measures how far the quick fit lands from the full one on every click (docs/annotate.md).
 QUICK_AZIMUTH_STEP_DEG = 30.0
 
 #: The quick fit ranks the scan's best this many views by the full solve, each at the marks'
 #: noise it reads (coarse grid), and keeps that noise (``fine_noise`` off). The full fit's six,
 #: each noise read again on the full grid, were half the quick fit's time: ranking three took
 #: its processor time from 300 to 145 ms at the median, landing as near the full fit
-#: (BENCHMARKS: annotate; the same action counts).
+#: (docs/annotate.md; the same action counts).
 QUICK_RANKED_CANDIDATES = 3
 QUICK_COARSE_EVALUATIONS = 10
 QUICK_POLISH_EVALUATIONS = 10

@@ -24,7 +24,7 @@ def closer_camera(scorer: Scorer, hypothesis: Hypothesis, aim: tuple[float, floa
     solve) and whether it fits far better (``closer_camera_gain``, ``closer_camera_evidence``).
     A photo from a few metres shows the car's near end larger than its far end, which no
     orthographic view of any car does: fitted as if from afar, its marks stay pixels off, or the
-    view runs astray to bend a car onto them (BENCHMARKS.md: ``--orthographic-check``).
+    view runs astray to bend a car onto them (docs/fit_accuracy.md: ``--orthographic-check``).
 
     Returns:
         the check as a dict (``camera_distance_mm`` at that fit's wheelbase: the told one, else

@@ -31,7 +31,7 @@ mostly as the prior put it. How much of a residual is the car and how much the m
 chosen per photo by the field's marginal likelihood (type-II maximum likelihood) over a small
 grid: the local part's amplitude (``LOCAL_AMPLITUDES``) and the marks' noise
 (``KEYPOINT_NOISE`` × ``NOISE_FACTORS``), so careless marks are not chased. Measured on the
-leave-one-out benchmark (BENCHMARKS.md, where these constants were chosen); on by default for
+leave-one-out benchmark (docs/fit_accuracy.md, where these constants were chosen); on by default for
 the Gaussian-prior methods and off for the paper's solve, which stays as published.
 """
 from __future__ import annotations

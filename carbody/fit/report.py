@@ -121,7 +121,7 @@ def build_report(result, truth: Wireframe | None = None, top: int = 10, image: s
     sd = result.keypoint_sd_mm()
     if sd is not None:
         # the fit's own estimate of how far each keypoint may be off (posterior standard
-        # deviations per axis, and their 3D root sum of squares); BENCHMARKS.md compares it
+        # deviations per axis, and their 3D root sum of squares); docs/fit_accuracy.md compares it
         # with the leave-one-out errors
         expected = result.expected_error_mm(sd)
         report["keypoint_sd_mm"] = sd

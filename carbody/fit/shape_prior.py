@@ -47,7 +47,7 @@ def prepared(library: Library, method: str, wheelbase_mm: float | None = None, f
 #: right across the car (:func:`~carbody.fit.deform.joint_field_basis`), solved with the mix. A
 #: car's pillar or window end that sits off every template's is then taken up there, not by
 #: bending the whole mix (on a near-side view, a car made 10 % wider moves such a point in the
-#: image as well). Chosen on the leave-one-out benchmark (BENCHMARKS.md; ``bench_fit_accuracy.py
+#: image as well). Chosen on the leave-one-out benchmark (docs/fit_accuracy.md; ``bench_fit_accuracy.py
 #: --joint-field A`` reruns 0.2–0.7: larger lowers the level mean, raises the 10° one and the
 #: pickup's max; the broad part instead was worse); the deformation after the fit is unchanged.
 JOINT_FIELD_AMPLITUDE = 0.3
@@ -107,7 +107,7 @@ SIZED_IN_MM = (True, False, True)
 
 #: The width expansions the Gaussian shape models are built from: the library's run 0.7–1.2 ×
 #: each template's width, far wider and narrower than real cars differ; those within this
-#: range keep the prior's width spread a real car's (BENCHMARKS.md: all did worse, 1.0 alone
+#: range keep the prior's width spread a real car's (docs/fit_accuracy.md: all did worse, 1.0 alone
 #: worse at 10° elevation). The paper's solve mixes all of them.
 REAL_WIDTH_FACTORS = (0.9, 1.1)
 
@@ -131,7 +131,7 @@ def sized_shape_model(library: Library, wheelbase_mm: float) -> ShapeModel:
     and heights in mm (``SIZED_IN_MM``) and lengths in wheelbases, then read at this car's
     wheelbase (both from the models of :func:`real_widths`). A wrong
     wheelbase therefore changes the car's shape, not only its size. Measured on the
-    leave-one-out benchmark (BENCHMARKS.md).
+    leave-one-out benchmark (docs/fit_accuracy.md).
     """
     in_mm = np.tile(SIZED_IN_MM, library.S.shape[0] // 3)
 
@@ -164,7 +164,7 @@ def implausibility(shape: np.ndarray, library: Library, wheelbase_mm: float | No
     and a few prior standard deviations of width (the expansions span 0.7–1.2 ×) cost less than a few
     pixels of misfit on a car unlike the library's. No car is 0.6 m wide; this says so.
     Within the range nothing changes. The range and EXTENT_TOLERANCE were chosen on the
-    leave-one-out benchmark (BENCHMARKS.md); a wider range (templates ± 10 %) did worse.
+    leave-one-out benchmark (docs/fit_accuracy.md); a wider range (templates ± 10 %) did worse.
     """
     extents = _extents(np.asarray(shape, dtype=float)[:, None])[:, 0]
     low, high = _cached(library, "extents", lambda: _template_extents(library))

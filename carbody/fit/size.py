@@ -19,7 +19,7 @@ one it does not (a level front view) is sized more by what cars usually are.
 
 This replaces the library mix's own wheelbase (the templates' wheelbases weighted by the mix,
 SPEC's default) for the Gaussian-prior methods: on real photos that was 8.6 % off at the
-median (BENCHMARKS.md, "Real photos"), because a mix chosen for its shape takes its size from
+median (docs/real_photos.md), because a mix chosen for its shape takes its size from
 whichever templates share that shape, however large they are.
 """
 from __future__ import annotations

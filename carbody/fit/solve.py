@@ -22,7 +22,7 @@ unknown scale s and offset t. Three methods:
   pick which template the invisible part resembles (front and rear views gain most). All
   centres share one SVD and their scale searches run side by side, so it costs about one
   ``"gauss"`` solve; it has the lowest mean error of the three in every case of the
-  leave-one-out benchmark (BENCHMARKS.md).
+  leave-one-out benchmark (docs/fit_accuracy.md).
 
 Both Gaussian-prior models carry, beside the library's directions, the local part of the
 photo-matching deformation as zero-mean directions (:meth:`ShapeModel.with_field`), so the
@@ -748,7 +748,7 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     Keypoints the view does not see keep the library's spread; those it sees are pinned by the
     marks (to λ's noise) except along the camera's line of sight. The image scale's own
     uncertainty joins it (:func:`scale_spread`), and a refined view's (``view_spread``); the
-    photo-matching deformation that follows does not. BENCHMARKS.md measures how it compares
+    photo-matching deformation that follows does not. docs/fit_accuracy.md measures how it compares
     with the leave-one-out errors.
     """
     cov = joint_keypoint_covariance(posterior)

@@ -37,7 +37,7 @@ class TrainConfig:
 
     ``schedule`` is ``"cosine"`` (lr decays from ``lr`` to 0 over the epochs, per batch; the
     shipped weights) or ``"constant"`` (the paper's fixed lr; on our data set its last epochs
-    swing by ±5 points of validation accuracy, see BENCHMARKS.md).
+    swing by ±5 points of validation accuracy, see docs/view_classifier.md).
     """
 
     epochs: int = 50
