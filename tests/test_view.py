@@ -126,6 +126,27 @@ def test_square_input_keeps_the_aspect_ratio():
     assert (np.ptp(cols) + 1) / (np.ptp(rows) + 1) == pytest.approx(5.0, rel=0.25)
 
 
+def test_random_erasing_fills_one_rectangle_in_about_half_of_the_pictures():
+    from carbody.view.train import augment_batch, erase_patches
+
+    rng = np.random.default_rng(0)
+    x = np.full((400, 64, 64, 3), 128.0)
+    erase_patches(x, rng)
+    changed = (x != 128.0).any(axis=3)
+    hit = changed.any(axis=(1, 2))
+    assert 0.4 < hit.mean() < 0.6
+    for m in changed[hit][:50]:                          # one rectangle, 2-20 % of the picture
+        rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+        box = (np.ptp(rows) + 1) * (np.ptp(cols) + 1)
+        assert 0.01 * 64 * 64 <= box <= 0.22 * 64 * 64
+        assert m.sum() >= 0.95 * box
+    # Off (the default), the batch and the generator's stream are as without the option.
+    imgs, labels = np.random.default_rng(1).integers(0, 255, (8, 32, 32, 3)).astype(np.uint8), np.arange(8)
+    a, b = np.random.default_rng(2), np.random.default_rng(2)
+    assert np.array_equal(augment_batch(imgs, labels, a)[0], augment_batch(imgs, labels, b, erase=False)[0])
+    assert a.random() == b.random()
+
+
 # ------------------------------------------------------------------------------------- data set
 
 def toy_body(wireframe):

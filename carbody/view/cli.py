@@ -57,6 +57,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", default=None, help="loss/accuracy PNG (default: OUTPUT with .png)")
     p.add_argument("--init", default=None, metavar="W.pt", help="start from these weights instead of from scratch")
     p.add_argument("--zoom", action="store_true", help="augment with a random zoom of 0.85-1.2 (an inexact box)")
+    p.add_argument("--erase", action="store_true",
+                   help="augment by filling a random rectangle with noise in half of the pictures (random erasing)")
     p.add_argument("--input-size", type=int, default=64, metavar="PX",
                    help="network input side in pixels (default 64, the paper's)")
     p.add_argument("--resume", action="store_true",
@@ -131,7 +133,7 @@ def _train_view(args) -> int:
 
     check_output_file(args.output)  # before hours of training, not after
     cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
-                      threads=args.threads, schedule=args.schedule, zoom=args.zoom,
+                      threads=args.threads, schedule=args.schedule, zoom=args.zoom, erase=args.erase,
                       init=args.init, input_size=args.input_size,
                       resume=args.resume)
     hist = train_view_classifier(args.dataset, args.output, cfg, plot=args.plot, progress=not args.quiet)

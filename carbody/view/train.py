@@ -49,6 +49,7 @@ class TrainConfig:
     augment: bool = True
     schedule: str = "cosine"
     zoom: bool = False
+    erase: bool = False
     init: str | None = None
     input_size: int = INPUT_SIZE
     resume: bool = False
@@ -128,9 +129,10 @@ def load_images(dataset_dir: str | Path, rows: list[dict], progress: bool = True
 
 
 def augment_batch(x: np.ndarray, y: np.ndarray, rng: np.random.Generator,
-                  zoom: bool | np.ndarray = False) -> tuple[np.ndarray, np.ndarray]:
+                  zoom: bool | np.ndarray = False, erase: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Flip (label mirrored), shift ≤ 1/16 of the side, brightness/contrast jitter, optionally a
-    zoom of 0.85–1.2 (60 % of images; ``zoom`` may be a per-image mask), 10 % grayscale."""
+    zoom of 0.85–1.2 (60 % of images; ``zoom`` may be a per-image mask), 10 % grayscale, and
+    with ``erase`` one random rectangle of noise over half of the images (:func:`erase_patches`)."""
     x = x.copy()
     y = y.copy()
     n, size = len(x), x.shape[1]
@@ -158,7 +160,24 @@ def augment_batch(x: np.ndarray, y: np.ndarray, rng: np.random.Generator,
             xf[i] = cv2.warpAffine(xf[i], a, (size, size), borderMode=cv2.BORDER_REPLICATE)
     grey = rng.random(n) < 0.1
     xf[grey] = xf[grey].mean(axis=3, keepdims=True)
+    if erase:
+        erase_patches(xf, rng)
     return np.clip(xf, 0, 255).astype(np.uint8), y
+
+
+def erase_patches(x: np.ndarray, rng: np.random.Generator, share: float = 0.5,
+                  area: tuple[float, float] = (0.02, 0.2)) -> None:
+    """Random erasing, in place on (n, s, s, 3) float images: on ``share`` of them one rectangle of
+    ``area`` of the picture (aspect 0.3–3.3) is filled with uniform noise. A car hidden in part
+    must be told by what else shows: its ends' lamps, grille and glass, not only its side's
+    layout."""
+    n, size = len(x), x.shape[1]
+    for i in np.flatnonzero(rng.random(n) < share):
+        a = rng.uniform(*area) * size * size
+        r = np.exp(rng.uniform(np.log(0.3), np.log(3.3)))
+        h, w = (min(size, max(1, int(round(np.sqrt(a * r))))), min(size, max(1, int(round(np.sqrt(a / r))))))
+        top, left = rng.integers(0, size - h + 1), rng.integers(0, size - w + 1)
+        x[i, top:top + h, left:left + w] = rng.uniform(0, 255, (h, w, 3))
 
 
 def evaluate(model, x: np.ndarray, y: np.ndarray, batch_size: int = 256) -> tuple[float, float, np.ndarray]:
@@ -272,7 +291,7 @@ def train_view_classifier(dataset_dir, output: str | Path, config: TrainConfig =
                 for j, k in enumerate(idx):
                     if k in pictures:
                         xb[j] = photo_frame_crop(pictures[k], boxes[k], rng, size)
-                xb, yb = augment_batch(xb, yb, rng, zoom=config.zoom & ~framed[idx])
+                xb, yb = augment_batch(xb, yb, rng, zoom=config.zoom & ~framed[idx], erase=config.erase)
             logits = model(to_tensor(xb))
             target = torch.from_numpy(yb)
             loss = torch.nn.functional.cross_entropy(logits, target)
