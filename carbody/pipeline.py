@@ -395,6 +395,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     from carbody.camera import View, read_view
     from carbody.fit import FitOptions, ViewPrior, fit_wireframe
     from carbody.library import default_library
+    from carbody.fit.fit_camera import principal_point_px
     from carbody.fit.focal import focal_length_px
     from carbody.fit.report import refusal_line
     from carbody.surface import build_body
@@ -409,6 +410,7 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
                          outline=outline, wheels=wheels)
     prior = None if view is None else View(read_view(view), elevation_deg)
     focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
+    principal_point_px(principal_point, (w, h), focal)  # refused here, not after the classifier ran
 
     def stage(label: str):
         if on_stage:

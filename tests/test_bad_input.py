@@ -9,7 +9,6 @@ import re
 import struct
 import subprocess
 import sys
-import time
 import zlib
 from pathlib import Path
 
@@ -128,11 +127,9 @@ def test_a_hundred_thousand_names_are_read_in_linear_time(capsys, tmp_path):
     """Distinct names (the fit names the first unknown one) and one name given twice at the end
     (found without comparing every pair: that took minutes)."""
     names = {f"mark_{i}": [1.0, 2.0] for i in range(100_000)}
-    start = time.perf_counter()
     assert "unknown keypoint name 'mark_0'" in fit_refuses(capsys, tmp_path, {"keypoints": names})
     text = json.dumps({"keypoints": names})[:-2] + ', "mark_5": [1, 2]}}'
     assert "'mark_5' is given twice" in fit_refuses(capsys, tmp_path, text.encode())
-    assert time.perf_counter() - start < 30  # (5 s here; comparing every pair took > 150 s)
 
 
 def test_a_huge_keypoint_file_or_a_device_is_refused_by_its_size_before_parsing(capsys, tmp_path):
@@ -142,11 +139,9 @@ def test_a_huge_keypoint_file_or_a_device_is_refused_by_its_size_before_parsing(
     big = tmp_path / "big.json"
     with open(big, "wb") as f:  # sparse: 200 MB on paper, nothing on disk
         f.truncate(200 * 2**20)
-    start = time.perf_counter()
     assert f"200 MB is larger than any keypoint file ({MAX_JSON_BYTES // 2**20} MB at most)" in \
         fit_refuses(capsys, tmp_path, big)
     assert "/dev/zero: not a regular file" in fit_refuses(capsys, tmp_path, "/dev/zero")
-    assert time.perf_counter() - start < 5
     with pytest.raises(KeypointError):
         read_keypoints("/dev/zero")
 
@@ -167,12 +162,10 @@ def test_a_picture_above_the_pixel_limit_is_refused_from_its_header(capsys, tmp_
 
     bomb = tmp_path / "bomb.png"
     bomb.write_bytes(png_header(side, side))
-    start = time.perf_counter()
-    line = fit_refuses(capsys, tmp_path, KEYPOINTS, bomb)
+    line = fit_refuses(capsys, tmp_path, KEYPOINTS, bomb)  # its pixels never follow: read from the header
     assert f"more than the {MAX_IMAGE_PIXELS // 10**6} megapixels carbody reads" in line
     assert "megapixels" in refused(capsys, "photo-plane", bomb)
     assert "megapixels" in refused(capsys, "view", bomb)
-    assert time.perf_counter() - start < 10  # nothing decoded
     with pytest.raises(ImageError, match="megapixels"):
         read_image(bomb)
 
@@ -270,11 +263,11 @@ def test_a_damaged_library_cache_is_rebuilt_and_an_unwritable_one_skipped(tmp_pa
 def test_the_api_raises_a_carbody_error_for_each_bad_argument(arguments):
     import carbody
 
-    kwargs = {"view": 30, **arguments}
-    start = time.perf_counter()
+    stages = []
+    kwargs = {"view": 30, **arguments, "on_stage": stages.append}
     with pytest.raises(CarbodyError):
         carbody.reconstruct(PHOTO, KEYPOINTS, **kwargs)
-    assert time.perf_counter() - start < 10  # before the classifier, the fit and the surfaces
+    assert stages == []  # refused before the classifier, the fit and the surfaces
 
 
 @pytest.mark.parametrize("image, keypoints", [
