@@ -307,7 +307,7 @@ def write_assembly(path: Path, result: Reconstruction) -> Path:
 
 def _read_inputs(image, keypoints):
     """(RGB image, its path or None, annotation) with sizes checked against each other."""
-    from carbody.fit.keypoints_io import Annotation, check_image_size, read_keypoints
+    from carbody.fit.keypoints_io import Annotation, check_image_size, check_keypoints, read_keypoints
     from carbody.view.predict import read_image
 
     image_path = None
@@ -323,6 +323,7 @@ def _read_inputs(image, keypoints):
                             f"got a {type(keypoints).__name__}")
     h, w = rgb.shape[:2]
     check_image_size(ann, (w, h))
+    check_keypoints(ann.points, (w, h))  # as the fit will, but before the classifier crops to them
     return rgb, image_path, ann
 
 

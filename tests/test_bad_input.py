@@ -254,6 +254,34 @@ def test_a_damaged_library_cache_is_rebuilt_and_an_unwritable_one_skipped(tmp_pa
     assert not [p for p in tmp_path.rglob("*.tmp*")]
 
 
+@pytest.mark.parametrize("change, says", [
+    (lambda m: {**m, "nose_centre": [99999, 5]}, "lies outside the 1000 x 640 image"),  # a typo's mark
+    (lambda m: dict(list(m.items())[:4]), "at least 5"),
+    (lambda m: {k: [300, 300] for k in list(m)[:8]}, "coincident"),
+    (lambda m: {**m, "bogus": [10, 10]}, "unknown keypoint name 'bogus'"),
+])
+def test_marks_the_fit_cannot_use_are_refused_before_the_classifier(capsys, tmp_path, change, says):
+    """Checked with the photo, before any stage: a mark far off the photo once sent the classifier
+    to crop a square of 70 GB round it (an OpenCV traceback), without a view told."""
+    import carbody
+
+    marks = change(dict(MARKS["keypoints"]))
+    stages = []
+    with pytest.raises(CarbodyError, match=says):
+        carbody.reconstruct(PHOTO, marks, on_stage=stages.append)
+    assert stages == []
+    path = tmp_path / "k.json"
+    path.write_text(json.dumps({**MARKS, "keypoints": marks}))
+    assert says in refused(capsys, "reconstruct", PHOTO, "-k", path, "-o", tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    if "outside" in says:  # `carbody view -k` crops to the marks too
+        assert says in refused(capsys, "view", PHOTO, "-k", path)
+
+
+def test_a_box_far_larger_than_the_picture_is_refused(capsys):
+    assert "more than 3 times the 1000x640 px picture" in refused(capsys, "view", PHOTO, "--box", 0, 0, 99999, 5)
+
+
 @pytest.mark.parametrize("arguments", [
     dict(wheelbase_mm="long"), dict(wheelbase_mm=[2700]), dict(elevation_deg="5"), dict(elevation_deg=None),
     dict(camera_distance_mm=[7000]), dict(camera_distance_mm=-1), dict(principal_point=("a", "b")),

@@ -282,10 +282,7 @@ def check_keypoints(points: dict[str, tuple[float, float]],
         if not (np.isfinite(u) and np.isfinite(v)):
             raise KeypointError(f"keypoint {name!r} has a NaN or infinite coordinate ({u}, {v})")
         if image_size is not None:
-            w, h = image_size
-            if not (0 <= u <= w and 0 <= v <= h):
-                raise KeypointError(f"keypoint {name!r} at ({u:g}, {v:g}) lies outside the "
-                                    f"{w} x {h} image")
+            _on_image(name, u, v, image_size)
         chosen.append(slots[name])
         uv.append((u, v))
     if len(chosen) < min_keypoints:
@@ -298,6 +295,28 @@ def check_keypoints(points: dict[str, tuple[float, float]],
         raise KeypointError("the keypoints all lie on one line: the fit cannot recover a 3D shape")
     _check_twins(chosen, uv)
     return chosen, uv
+
+
+def check_on_image(points: dict[str, tuple[float, float]], image_size: tuple[int, int]) -> None:
+    """Refuse a mark off the image (``image_size``: width, height px); marks that are not finite
+    pairs of numbers are left to :func:`check_keypoints`.
+
+    Raises:
+        KeypointError: naming the first mark off the image.
+    """
+    for name, p in points.items():
+        try:
+            u, v = (float(c) for c in p)
+        except (TypeError, ValueError):
+            continue
+        if np.isfinite(u) and np.isfinite(v):
+            _on_image(name, u, v, image_size)
+
+
+def _on_image(name: str, u: float, v: float, image_size: tuple[int, int]) -> None:
+    w, h = image_size
+    if not (0 <= u <= w and 0 <= v <= h):
+        raise KeypointError(f"keypoint {name!r} at ({u:g}, {v:g}) lies outside the {w} x {h} image")
 
 
 def _check_twins(slots: list[KeypointSlot], uv: np.ndarray) -> None:

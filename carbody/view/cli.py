@@ -167,13 +167,16 @@ def _view(args) -> int:
 
     from carbody.view.predict import keypoint_box
 
-    box, marks = args.box, None
+    box, marks, image = args.box, None, args.image
     if args.keypoints:
-        from carbody.fit.keypoints_io import read_keypoints
+        from carbody.fit.keypoints_io import check_on_image, read_keypoints
+        from carbody.view.predict import read_image
 
         marks = read_keypoints(args.keypoints).points
+        image = read_image(args.image)
+        check_on_image(marks, (image.shape[1], image.shape[0]))  # a mark far off would crop a vast square
         box = keypoint_box(marks)
-    p = predict_view(args.image, weights=args.weights, box=box, marks=marks)
+    p = predict_view(image, weights=args.weights, box=box, marks=marks)
     if args.json:
         out = p.as_dict()
         if box is not None:

@@ -240,8 +240,14 @@ BOX_FILL = 0.8
 KEYPOINT_BOX_MARGIN = 0.12
 
 
+#: A car's box may run off the picture (a car cut by the frame), but not past this many times
+#: its larger side: the square cropped round it would be mostly made-up border.
+MAX_BOX_TO_PICTURE = 3.0
+
+
 def check_box(box, image_size: tuple[int, int] | None = None) -> tuple[float, float, float, float]:
-    """(x0, y0, x1, y1) pixels as floats, checked: finite, x1 > x0, y1 > y0, overlapping the picture.
+    """(x0, y0, x1, y1) pixels as floats, checked: finite, x1 > x0, y1 > y0, overlapping the picture
+    and at most :data:`MAX_BOX_TO_PICTURE` times its size.
 
     Raises:
         ViewError: anything else.
@@ -259,6 +265,9 @@ def check_box(box, image_size: tuple[int, int] | None = None) -> tuple[float, fl
         w, h = image_size
         if x1 <= 0 or y1 <= 0 or x0 >= w or y0 >= h:
             raise ViewError(f"box {x0:g} {y0:g} {x1:g} {y1:g} lies outside the {w}x{h} px picture")
+        if max(x1 - x0, y1 - y0) > MAX_BOX_TO_PICTURE * max(w, h):  # its square would be a vast crop
+            raise ViewError(f"box {x0:g} {y0:g} {x1:g} {y1:g} is more than {MAX_BOX_TO_PICTURE:g} times "
+                            f"the {w}x{h} px picture")
     return x0, y0, x1, y1
 
 
