@@ -327,7 +327,7 @@ def _read_inputs(image, keypoints):
     return rgb, image_path, ann
 
 
-def _check_arguments(wheelbase_mm, name, library, reject_outliers, force=False) -> None:
+def _check_arguments(wheelbase_mm, name, library, reject_outliers, force=False, on_stage=None) -> None:
     """Refuse, before any work, the arguments of :func:`reconstruct` its stages would only meet
     later (the view, the camera and the fit options are checked where they are read, also first)."""
     from carbody.fit.options import check_wheelbase
@@ -341,6 +341,8 @@ def _check_arguments(wheelbase_mm, name, library, reject_outliers, force=False) 
         raise CarbodyError(f"reject_outliers must be True or False, got {reject_outliers!r}")
     if not isinstance(force, bool):
         raise CarbodyError(f"force must be True or False, got {force!r}")
+    if on_stage is not None and not callable(on_stage):
+        raise CarbodyError(f"on_stage must be a function of the stage's name, got {on_stage!r}")
 
 
 def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm: float | None = None, *,
@@ -404,11 +406,12 @@ def reconstruct(image, keypoints, view: float | str | None = None, wheelbase_mm:
     timings: dict[str, float] = {}
     rgb, image_path, ann = _read_inputs(image, keypoints)
     h, w = rgb.shape[:2]
-    _check_arguments(wheelbase_mm, name, library, reject_outliers, force)
+    _check_arguments(wheelbase_mm, name, library, reject_outliers, force, on_stage)
     name = name or (image_path.stem if image_path else "car")
     options = FitOptions(camera_distance_mm=camera_distance_mm, principal_point=principal_point,
                          robust=reject_outliers, check_orthographic=True, view_prior_weight=view_prior_weight,
                          outline=outline, wheels=wheels)
+    View(0.0, elevation_deg)  # an elevation the view's prior cannot take, refused before the classifier runs
     prior = None if view is None else View(read_view(view), elevation_deg)
     focal, _ = focal_length_px(image_path, (w, h), focal_35mm)
     principal_point_px(principal_point, (w, h), focal)  # refused here, not after the classifier ran

@@ -287,6 +287,7 @@ def test_a_box_far_larger_than_the_picture_is_refused(capsys):
     dict(camera_distance_mm=[7000]), dict(camera_distance_mm=-1), dict(principal_point=("a", "b")),
     dict(focal_35mm="26"), dict(name=["car"]), dict(library="the shipped one"), dict(reject_outliers="no"),
     dict(view_prior_weight="1"), dict(view=[30]), dict(view=object()), dict(view=True), dict(view="front 999"),
+    dict(elevation_deg=100), dict(view=None, elevation_deg=100), dict(outline="yes"), dict(wheels="no"),
 ])
 def test_the_api_raises_a_carbody_error_for_each_bad_argument(arguments):
     import carbody

@@ -88,8 +88,9 @@ class FitOptions:
             raise FitError(f"prior weight {self.prior_weight!r} is not a positive number")
         if not (_finite(self.view_prior_weight) and self.view_prior_weight >= 0):
             raise FitError(f"view prior weight {self.view_prior_weight!r} is not a number ≥ 0")
-        if not isinstance(self.wheels, (bool, np.bool_)):
-            raise FitError(f"wheels must be True or False, got {self.wheels!r}")
+        for flag in ("wheels", "outline"):
+            if not isinstance(getattr(self, flag), (bool, np.bool_)):
+                raise FitError(f"{flag} must be True or False, got {getattr(self, flag)!r}")
         if self.focal_px is not None and not (_finite(self.focal_px) and self.focal_px > 0):
             raise FitError(f"focal length {self.focal_px!r} px is not a positive number")
         distance = self.camera_distance_mm
