@@ -123,7 +123,7 @@ def test_a_keypoint_file_with_a_byte_order_mark_is_read(tmp_path):
     assert ann.image_size == (1000, 640) and len(ann.points) == len(MARKS["keypoints"])
 
 
-def test_a_hundred_thousand_names_are_read_in_linear_time(capsys, tmp_path):
+def test_a_hundred_thousand_names_are_refused_by_the_first_unknown_and_by_the_repeat(capsys, tmp_path):
     """Distinct names (the fit names the first unknown one) and one name given twice at the end
     (found without comparing every pair: that took minutes)."""
     names = {f"mark_{i}": [1.0, 2.0] for i in range(100_000)}
