@@ -247,7 +247,8 @@ def main(argv=None) -> int:
         with open(args.tables) as f:
             rows = json.load(f)
         if args.first:
-            rows = [r for r in rows if r["template"] in set(names[:args.first])]
+            first = set(names[:args.first])
+            rows = [r for r in rows if r["template"] in first]
         print_tables(rows, seen)
         return 0
 

@@ -985,7 +985,7 @@ def summarise(rows: list[dict]) -> dict:
 
 
 #: Issue 24's targets on the photos' figures: (label, the statistic of a list of rows, the
-#: comparison, the bound, the format).
+#: comparison, the bound, the number's format, its unit).
 TARGETS = (
     ("photos with a body", lambda rs: 100.0 * np.mean([r["outcome"] == "body" for r in rs]), ">=", 90.0, ".0f", "%"),
     (f"view within {VIEW_OK_DEG:.0f}° of the estimate",

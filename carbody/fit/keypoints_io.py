@@ -298,17 +298,14 @@ def check_keypoints(points: dict[str, tuple[float, float]],
 
 
 def check_on_image(points: dict[str, tuple[float, float]], image_size: tuple[int, int]) -> None:
-    """Refuse a mark off the image (``image_size``: width, height px); marks that are not finite
-    pairs of numbers are left to :func:`check_keypoints`.
+    """Refuse a mark that is not two numbers or lies off the image (``image_size``: width, height
+    px); a mark at NaN is left to :func:`check_keypoints`.
 
     Raises:
-        KeypointError: naming the first mark off the image.
+        KeypointError: naming the first such mark.
     """
     for name, p in points.items():
-        try:
-            u, v = (float(c) for c in p)
-        except (TypeError, ValueError):
-            continue
+        u, v = _pair(p, f"keypoint {name!r}")
         if np.isfinite(u) and np.isfinite(v):
             _on_image(name, u, v, image_size)
 
