@@ -241,7 +241,10 @@ def main_eval(args) -> None:
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}, torch {torch.__version__}, 1 thread")
     hist = meta["history"]
-    print(f"weights: {len(hist['train_loss'])} epochs, {meta['dataset']['train_images']} training / "
+    soup = meta.get("soup") or []
+    trained = (f"a soup of {len(soup)} fine-tunes ({', '.join(str(i['epochs']) for i in soup)} epochs)" if soup
+               else f"{len(hist['train_loss'])} epochs")
+    print(f"weights: {trained}, {meta['dataset']['train_images']} training / "
           f"{meta['dataset']['val_images']} validation images, training time {hist['seconds']:.0f} s; "
           f"held-out cars: {', '.join(val_templates)}")
     print(f"evaluation set: {'fresh %s renders, seed %d' % ('photo-like' if args.photo_like else 'classic', args.seed) if not args.dataset else dataset} "
@@ -251,7 +254,11 @@ def main_eval(args) -> None:
     print(f"| accuracy within ±15° | {s['within15']:.3f} |")
     print(f"| paper's 13 classes (right side folded onto its mirror) | {s['paper13']:.3f} |")
     print(f"| front/rear confusions (error ≥ 150°) | {s['front_rear_confusions']:.3f} |")
-    print(f"| final validation accuracy in training (history) | {hist['val_acc'][-1]:.3f} |")
+    if soup:
+        accs = " / ".join(f"{i['val_acc']:.3f}" for i in soup)
+        print(f"| its fine-tunes' last validation accuracy in training | {accs} |")
+    else:
+        print(f"| final validation accuracy in training (history) | {hist['val_acc'][-1]:.3f} |")
     for lo, hi in ((0, 10), (10, 20), (20, 30.1)):
         m = (elev >= lo) & (elev < hi)
         if m.any():
@@ -705,6 +712,52 @@ def measure_listed(work: Path, specs: list[str], photos: list[dict], args) -> No
         print(label, row, flush=True)
 
 
+#: The plain sweep's paints (the shipped test's red, a blue and a silver) and views.
+SWEEP_PAINTS = {"red": (0.75, 0.1, 0.1), "blue": (0.1, 0.2, 0.6), "silver": (0.6, 0.62, 0.65)}
+SWEEP_ELEVATIONS = (5, 10, 20)
+
+
+def main_plain_sweep(args) -> int:
+    """Every held-out car as ``tests/test_view_shipped.py`` draws it (its body and wheels, no
+    lamps or grille, orthographic, 85 % fill, a plain backdrop) at all 24 classes × 3 elevations,
+    in three paints: the share within ±15° per weights file (``--measure``, else the shipped)."""
+    from carbody.render import Look, Scene, tessellate
+    from carbody.surface import build_body
+    from carbody.templates import load_templates
+    from carbody.view.dataset import wheel_meshes
+    from carbody.view.labels import angular_difference
+    from carbody.view.predict import load_classifier, predict_view
+
+    weights = dict(m.split("=", 1) for m in args.measure) or {"shipped": None}
+    _, meta = load_classifier(next(iter(weights.values())))
+    held_out = meta["dataset"]["validation_templates"]
+    templates = load_templates()
+    hits = {(w, p): [] for w in weights for p in SWEEP_PAINTS}
+    for name in held_out:
+        row, wf = next((r, w) for r, w in templates if r["name"] == name)
+        scene = Scene(tessellate(build_body(wf, check=False))
+                      + wheel_meshes(wf.control_points, float(row["tyre_radius_mm"])), size=(160, 120))
+        for paint, rgb in SWEEP_PAINTS.items():
+            look = Look(paint=rgb, background=(0.85, 0.87, 0.9),
+                        colours={"tyre": (0.05, 0.05, 0.05), "rim": (0.6, 0.6, 0.6)})
+            for theta in range(0, 360, 15):
+                for elevation in SWEEP_ELEVATIONS:
+                    mirrored = theta > 180
+                    img = scene.render(360 - theta if mirrored else theta, elevation, look=look, distance=None,
+                                       fill=0.85)
+                    img = img[:, ::-1].copy() if mirrored else img
+                    for label, w in weights.items():
+                        p = predict_view(img, weights=w)
+                        hits[label, paint].append(angular_difference(p.theta_deg, theta) <= 15)
+    n = len(held_out) * 24 * len(SWEEP_ELEVATIONS)
+    print(f"plain sweep: {len(held_out)} held-out cars × 24 views × {len(SWEEP_ELEVATIONS)} elevations = {n} "
+          f"renders per paint; share within ±15°")
+    print("| weights | " + " | ".join(SWEEP_PAINTS) + " |\n|---|" + "---|" * len(SWEEP_PAINTS))
+    for label in weights:
+        print(f"| {label} | " + " | ".join(f"{np.mean(hits[label, p]):.3f}" for p in SWEEP_PAINTS) + " |")
+    return 0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--weights", default=None, help="weights file (default: shipped)")
@@ -728,8 +781,12 @@ def main() -> None:
     ap.add_argument("--width", type=float, default=1.0, help="photo ablation: MobileNetV2 width multiplier")
     ap.add_argument("--train-seed", type=int, default=0, help="photo ablation: training seed (a replicate's)")
     ap.add_argument("--measure", action="append", default=[], metavar="LABEL=WEIGHTS",
-                    help="photo ablation: measure this weights file on the rows' photos and renders (repeatable)")
+                    help="photo ablation (and --plain-sweep): measure this weights file on the rows' photos and "
+                         "renders (repeatable)")
     ap.add_argument("--table", action="store_true", help="photo ablation: print the table of what is measured")
+    ap.add_argument("--plain-sweep", action="store_true",
+                    help="the held-out cars as the shipped weights' test draws them, every view, three paints "
+                         "(--measure LABEL=WEIGHTS to compare files)")
     ap.add_argument("--real", action="store_true", help="classify the real photos of ../shared/realphotos")
     ap.add_argument("--photos", default=None, help="--real: the photo folder (default ../shared/realphotos)")
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
@@ -746,6 +803,8 @@ def main() -> None:
         return main_real(args)
     if args.speed:
         return main_speed(args)
+    if args.plain_sweep:
+        return main_plain_sweep(args)
     if args.photo_ablation:
         if args.count == 480:
             args.count = 4800

@@ -301,6 +301,66 @@ def test_two_data_sets_train_together_only_when_they_hold_out_the_same_cars(toy_
     assert not (tmp_path / "x.pt").exists()
 
 
+def test_a_soup_is_the_mean_of_networks_fine_tuned_from_one_start(toy_dataset, tmp_path):
+    """Two fine-tunes of one start (seeds 1 and 2) averaged: every weight is their mean, the soup
+    loads and classifies, and ``soup-view --calibrate`` fits its temperature. Ingredients that
+    are not one network from one start are refused in one line, and nothing is written."""
+    from carbody.view.predict import load_classifier, predict_view
+    from carbody.view.train import TrainConfig, average_weights, train_view_classifier
+
+    quick = dict(epochs=1, batch_size=16, width_mult=0.5, augment=False)
+    start = tmp_path / "start.pt"
+    train_view_classifier(toy_dataset, start, TrainConfig(**quick), progress=False)
+    tuned = [tmp_path / f"tuned{s}.pt" for s in (1, 2)]
+    for s, out in zip((1, 2), tuned):
+        train_view_classifier(toy_dataset, out, TrainConfig(**quick, seed=s, init=str(start), lr=1e-3),
+                              progress=False)
+    a, b = (torch.load(t, weights_only=True)["state_dict"] for t in tuned)
+    soup = tmp_path / "soup.pt"
+    payload = average_weights(tuned, soup)
+    moved = 0
+    for k, v in torch.load(soup, weights_only=True)["state_dict"].items():
+        if v.is_floating_point():
+            assert torch.allclose(v.float(), (a[k].float() + b[k].float()) / 2, atol=2e-3, rtol=2e-3), k
+            moved += not torch.equal(a[k], b[k])
+    assert moved > 100                       # the two seeds did differ
+    assert [i["seed"] for i in payload["soup"]] == [1, 2] and payload["config"]["init"] == str(start)
+    p = predict_view(next((toy_dataset / "images").rglob("*.png")), weights=soup)
+    assert p.probabilities.sum() == pytest.approx(1, abs=1e-5)
+
+    with pytest.raises(ViewError, match="at least two"):
+        average_weights(tuned[:1], tmp_path / "x.pt")
+    with pytest.raises(ViewError, match="one of the weights averaged"):
+        average_weights(tuned, tuned[1])
+    with pytest.raises(ViewError, match="from scratch"):
+        average_weights([start, tuned[0]], tmp_path / "x.pt")
+    other = tmp_path / "other.pt"                   # fine-tuned from another start
+    train_view_classifier(toy_dataset, other, TrainConfig(**quick, init=str(tuned[0])), progress=False)
+    with pytest.raises(ViewError, match="one start"):
+        average_weights([tuned[0], other], tmp_path / "x.pt")
+    bigger = torch.load(tuned[1], weights_only=True) | {"input_size": 96}
+    torch.save(bigger, tmp_path / "bigger.pt")
+    with pytest.raises(ViewError, match="input_size 96 differs"):
+        average_weights([tuned[0], tmp_path / "bigger.pt"], tmp_path / "x.pt")
+    (tmp_path / "junk.pt").write_text("not weights")
+    with pytest.raises(ViewError, match="not a view classifier"):
+        average_weights([tuned[0], tmp_path / "junk.pt"], tmp_path / "x.pt")
+    assert not (tmp_path / "x.pt").exists()
+
+    proc = run_cli("soup-view", *map(str, tuned), "-o", str(tmp_path / "cal.pt"), "--calibrate", str(toy_dataset))
+    assert proc.returncode == 0, proc.stderr
+    _, meta = load_classifier(str(tmp_path / "cal.pt"))
+    assert meta["temperature"] != 1.0 and meta["calibration"]["images"] > 0 and len(meta["soup"]) == 2
+    proc = run_cli("soup-view", *map(str, tuned), "-o", str(tmp_path / "bad.pt"), "--calibrate",
+                   str(tmp_path / "no such set"))
+    assert proc.returncode == 2 and proc.stderr.strip().count("\n") == 0, proc.stderr
+    assert not list(tmp_path.glob("*bad*"))
+    before = tuned[0].read_bytes()
+    proc = run_cli("soup-view", *map(str, tuned), "-o", str(tuned[0]), "--calibrate", str(toy_dataset))
+    assert proc.returncode == 2 and "one of the weights averaged" in proc.stderr
+    assert tuned[0].read_bytes() == before
+
+
 def test_training_refuses_a_bad_dataset(tmp_path):
     from carbody.view.train import train_view_classifier
 

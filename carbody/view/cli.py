@@ -72,10 +72,26 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
                                    "negative log-likelihood of a rendered data set's images of the cars the "
                                    "weights were not trained on, with mirror averaging as carbody view does, and store it "
                                    "in the weights file, so the probabilities reported are calibrated.")
-    p.add_argument("dataset", help="folder written by render-dataset (its images of the weights' held-out cars are used)")
+    p.add_argument("dataset", nargs="+",
+                   help="folder written by render-dataset (its images of the weights' held-out cars are used); "
+                        "several are read together")
     p.add_argument("--weights", required=True, help="weights file to calibrate (rewritten in place)")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
     p.set_defaults(func=_calibrate_view)
+
+    p = sub.add_parser("soup-view", help="average view classifiers fine-tuned from the same weights (a model soup)",
+                       description="Write the mean of the weights of two or more view classifiers fine-tuned "
+                                   "from the same weights (train-view --init) and holding out the same cars: a "
+                                   "uniform model soup, one network of the same size whose seeds' spread "
+                                   "averages out. Then fit its temperature on rendered held-out cars "
+                                   "(--calibrate, as calibrate-view does).")
+    p.add_argument("weights", nargs="+", help="weights files (.pt) to average")
+    p.add_argument("-o", "--output", required=True, help="weights file to write (.pt)")
+    p.add_argument("--calibrate", nargs="+", default=None, metavar="DATASET",
+                   help="rendered data set folder(s) to fit the soup's temperature on (else it is 1: "
+                        "run calibrate-view before using the soup)")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    p.set_defaults(func=_soup_view)
 
     p = sub.add_parser("view", help="tell the view angle of a car picture",
                        description="Classify the view angle of a car picture with the shipped MobileNetV2: "
@@ -157,6 +173,43 @@ def _calibrate_view(args) -> int:
     r = calibrate_weights(args.weights, args.dataset)
     print(f"{args.weights}: temperature {r['temperature']:.3f} on {r['images']} held-out renders; "
           f"NLL {r['nll_before']:.3f} -> {r['nll_after']:.3f}, ECE {r['ece_before']:.3f} -> {r['ece_after']:.3f}")
+    return 0
+
+
+def _soup_view(args) -> int:
+    import os
+    from pathlib import Path
+
+    import torch
+
+    from carbody.outputs import check_output_file
+    from carbody.view.train import average_weights, check_soup_output
+
+    out = check_output_file(args.output)
+    check_soup_output(args.weights, out)
+    if args.calibrate:
+        from carbody.view.dataset import read_datasets
+
+        read_datasets(args.calibrate)  # a bad folder refused before anything is written
+    # written beside the output and renamed when calibrated: a failed calibration leaves no file
+    tmp = out.with_name(f".{out.stem}.{os.getpid()}.soup{out.suffix}") if args.calibrate else out
+    try:
+        payload = average_weights(args.weights, tmp)
+        if args.calibrate:
+            from carbody.view.calibrate import calibrate_weights
+
+            torch.set_num_threads(max(1, args.threads))
+            r = calibrate_weights(tmp, args.calibrate, progress=False)
+            os.replace(tmp, out)
+    finally:
+        if tmp != out:
+            Path(tmp).unlink(missing_ok=True)
+    print(f"{out}: the mean of {len(payload['soup'])} networks fine-tuned from {payload['config']['init']}")
+    if args.calibrate:
+        print(f"temperature {r['temperature']:.3f} on {r['images']} held-out renders (ECE {r['ece_before']:.3f} "
+              f"-> {r['ece_after']:.3f})")
+    else:
+        print("temperature 1: run calibrate-view on rendered held-out cars before using it")
     return 0
 
 

@@ -393,3 +393,96 @@ def plot_history(hist: History, path: str | Path) -> Path:
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return Path(path)
+
+
+#: What every ingredient of a soup must share with the first (they are one network).
+SOUP_SAME = ("format", "num_classes", "classes_deg", "width_mult", "input_size", "mean", "std")
+
+
+def check_soup_output(weights: list[str | Path], output: str | Path) -> None:
+    """Refuse a soup written over one of its own ingredients.
+
+    Raises:
+        ViewError: ``output`` is one of ``weights``.
+    """
+    if Path(output).resolve() in {Path(w).resolve() for w in weights}:
+        raise ViewError(f"{output}: is one of the weights averaged; write the soup to another file")
+
+
+def average_weights(weights: list[str | Path], output: str | Path) -> dict:
+    """A uniform model soup (Wortsman et al., ICML 2022): the mean of the weights of networks
+    fine-tuned from the same start, written as one weights file of the same size.
+
+    Networks fine-tuned from one start stay in one basin of the loss, so their mean is a network
+    too, and a better one than the typical ingredient: the seeds' spread averages out. The
+    BatchNorm statistics are averaged as well. The soup keeps no temperature (1): calibrate it
+    (:func:`carbody.view.calibrate.calibrate_weights`) before use.
+
+    Returns:
+        The payload written (``soup``: each ingredient's file, start, seed, epochs and last
+        validation accuracy).
+
+    Raises:
+        ViewError: fewer than two files, the output one of them, a file that is not view weights,
+            or ingredients that differ in network, input, held-out cars or start (or were trained
+            from scratch).
+    """
+    import os
+
+    import torch
+
+    paths = [Path(w) for w in weights]
+    if len(paths) < 2:
+        raise ViewError(f"a soup needs at least two weights files, got {len(paths)}")
+    check_soup_output(paths, output)
+    payloads = []
+    for p in paths:
+        try:
+            payloads.append(torch.load(p, map_location="cpu", weights_only=True))
+        except Exception as e:  # noqa: BLE001 - any unreadable file is the same one-line refusal
+            raise ViewError(f"{p}: not a view classifier's weights ({type(e).__name__})") from None
+        if not isinstance(payloads[-1], dict) or "state_dict" not in payloads[-1]:
+            raise ViewError(f"{p}: not a view classifier's weights (no state_dict)")
+    first = payloads[0]
+    held_out = lambda q: sorted((q.get("dataset") or {}).get("validation_templates") or [])  # noqa: E731
+    start = lambda q: (q.get("config") or {}).get("init")  # noqa: E731
+    for p, q in zip(paths, payloads):
+        if start(q) is None:
+            raise ViewError(f"{p}: trained from scratch; a soup averages networks fine-tuned from the same "
+                            f"weights (train-view --init)")
+        for key in SOUP_SAME:
+            if q.get(key) != first.get(key):
+                raise ViewError(f"{p}: {key} {q.get(key)!r} differs from {paths[0].name}'s {first.get(key)!r}")
+        if held_out(q) != held_out(first):
+            raise ViewError(f"{p}: holds out other cars than {paths[0].name}; their renders would not be "
+                            f"held out from the soup")
+        if start(q) != start(first):
+            raise ViewError(f"{p}: fine-tuned from {start(q)}, {paths[0].name} from {start(first)}; "
+                            f"a soup needs one start")
+        shapes = {k: tuple(v.shape) for k, v in q["state_dict"].items()}
+        if shapes != {k: tuple(v.shape) for k, v in first["state_dict"].items()}:
+            raise ViewError(f"{p}: its layers differ from {paths[0].name}'s")
+    state = {}
+    for k, v in first["state_dict"].items():
+        if v.is_floating_point():
+            mean = sum(q["state_dict"][k].double() for q in payloads) / len(payloads)
+            state[k] = mean.to(v.dtype)
+        else:          # BatchNorm's batch counters
+            state[k] = max((q["state_dict"][k] for q in payloads), key=int)
+    payload = {k: first[k] for k in SOUP_SAME} | {
+        "state_dict": state,
+        "config": {"soup": len(payloads), "init": start(first)},
+        "history": {"train_loss": [], "train_acc": [], "val_loss": [], "val_acc": [],   # trained by none
+                    "seconds": float(sum(q["history"].get("seconds", 0.0) for q in payloads))},
+        "dataset": first["dataset"] | {"folders": sorted({f for q in payloads for f in q["dataset"].get("folders", [])})},
+        "soup": [{"file": p.name, "init": start(q), "seed": q["config"].get("seed"),
+                  "epochs": q["config"].get("epochs"), "erase": q["config"].get("erase", False),
+                  "folders": q["dataset"].get("folders", []), "val_acc": q["history"]["val_acc"][-1]}
+                 for p, q in zip(paths, payloads)],
+    }
+    output = Path(output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    tmp = output.with_name(f".{output.name}.{os.getpid()}.tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, output)
+    return payload
