@@ -177,11 +177,9 @@ def _calibrate_view(args) -> int:
 
 
 def _soup_view(args) -> int:
-    import os
-    from pathlib import Path
-
     import torch
 
+    from carbody.occ.step_curves import atomic_write
     from carbody.outputs import check_output_file
     from carbody.view.train import average_weights, check_soup_output
 
@@ -191,21 +189,20 @@ def _soup_view(args) -> int:
         from carbody.view.dataset import read_datasets
 
         read_datasets(args.calibrate)  # a bad folder refused before anything is written
-    # written beside the output and renamed when calibrated: a failed calibration leaves no file
-    tmp = out.with_name(f".{out.stem}.{os.getpid()}.soup{out.suffix}") if args.calibrate else out
-    try:
-        payload = average_weights(args.weights, tmp)
+    done = {}
+
+    def write(tmp) -> None:  # averaged and calibrated beside the output: a failed calibration leaves no file
+        done["soup"] = average_weights(args.weights, tmp)
         if args.calibrate:
             from carbody.view.calibrate import calibrate_weights
 
             torch.set_num_threads(max(1, args.threads))
-            r = calibrate_weights(tmp, args.calibrate, progress=False)
-            os.replace(tmp, out)
-    finally:
-        if tmp != out:
-            Path(tmp).unlink(missing_ok=True)
-    print(f"{out}: the mean of {len(payload['soup'])} networks fine-tuned from {payload['config']['init']}")
+            done["calibration"] = calibrate_weights(tmp, args.calibrate, progress=False)
+
+    atomic_write(out, write)
+    print(f"{out}: the mean of {len(done['soup']['soup'])} networks fine-tuned from {done['soup']['config']['init']}")
     if args.calibrate:
+        r = done["calibration"]
         print(f"temperature {r['temperature']:.3f} on {r['images']} held-out renders (ECE {r['ece_before']:.3f} "
               f"-> {r['ece_after']:.3f})")
     else:

@@ -427,8 +427,6 @@ def average_weights(weights: list[str | Path], output: str | Path) -> dict:
             or ingredients that differ in network, input, held-out cars or start (or were trained
             from scratch).
     """
-    import os
-
     import torch
 
     paths = [Path(w) for w in weights]
@@ -480,9 +478,7 @@ def average_weights(weights: list[str | Path], output: str | Path) -> dict:
                   "folders": q["dataset"].get("folders", []), "val_acc": q["history"]["val_acc"][-1]}
                  for p, q in zip(paths, payloads)],
     }
-    output = Path(output)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    tmp = output.with_name(f".{output.name}.{os.getpid()}.tmp")
-    torch.save(payload, tmp)
-    os.replace(tmp, output)
+    from carbody.occ.step_curves import atomic_write
+
+    atomic_write(output, lambda tmp: torch.save(payload, tmp))
     return payload
