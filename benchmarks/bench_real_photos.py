@@ -80,8 +80,8 @@ Definitions (per photo):
   top's x. The fitted body (``body.step``, tessellated) and the four tyres are drawn in the
   fitted camera, far triangles first (painter's order by the triangle centroid's distance from
   the camera), each pixel keeping the nearest one's owner. The photo's figure is the mean
-  distance of each annotated wheel's centroid from its matched tyre's visible centroid (the same
-  matching), % of S. Its own error: the same with our visible tyre moved onto the hub the fit
+  distance of each annotated wheel's centroid from its matched tyre's visible centroid (matched
+  as above, to the visible centroids: a near hub can project onto a hidden far one), % of S. Its own error: the same with our visible tyre moved onto the hub the fit
   found and trusted (the centroid less our tyre's offset from its hub, against that hub).
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); on three-quarter views (the estimate 15–75° from both ends),
@@ -482,7 +482,9 @@ def tyres_like_for_like(photo: Photo, camera: dict, control_points: np.ndarray, 
     seen = visible_tyre_centres(camera, control_points, folder / "body.step", (h, w))
     seen = np.where(np.isfinite(seen), seen, hubs)  # a tyre the car hides: its hub
     found = trusted_hubs(wheels)
-    pairs = wheel_matches(annotated, hubs)
+    # matched to the tyres seen, not to the hubs: a near wheel's hub can project onto a far one's
+    # (te32: its front right and rear left hubs 3 px apart), whose tyre the body hides
+    pairs = wheel_matches(annotated, seen)
     distance = float(np.mean([np.linalg.norm(annotated[i] - seen[j]) for i, j, _ in pairs]))
     own = [float(np.linalg.norm(annotated[i] - (seen[j] - hubs[j]) - found[WHEELS[j]]))
            for i, j, _ in pairs if WHEELS[j] in found]

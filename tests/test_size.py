@@ -31,8 +31,10 @@ def test_the_table_is_real_cars():
 
 def test_each_car_of_the_table_is_sized_by_its_proportions_from_the_others():
     """Left out of the table, a car's exact proportions (length, width, height in wheelbases)
-    give its wheelbase within 5 % at the median, and the estimate's own spread covers the truth
-    as a Gaussian's should (within two spreads for 95 %)."""
+    give its wheelbase within 3 % at the median, and the estimate's own spread covers the truth
+    as a Gaussian's should (within two spreads for 95 %). The proportions tell something: the
+    spread is well under the table's own at the median, and under it for every car (a van whose
+    proportions a minibus and an MPV share keeps most of it)."""
     cars = published_cars()
     errors, spreads = [], []
     for name, (wb, width, height, length) in zip(cars.names, cars.dimensions):
@@ -42,9 +44,10 @@ def test_each_car_of_the_table_is_sized_by_its_proportions_from_the_others():
         errors.append(np.log(est.wheelbase_mm / wb))
         spreads.append(est.spread)
     errors, spreads = np.abs(errors), np.array(spreads)
-    assert np.median(errors) < 0.05
+    assert np.median(errors) < 0.03
     assert np.mean(errors <= 2 * spreads) >= 0.95
-    assert np.all(spreads < 0.8 * np.sqrt(published_cars().log_gaussian[1][0, 0]))  # the proportions told something
+    table = np.sqrt(published_cars().log_gaussian[1][0, 0])
+    assert np.median(spreads) < 0.7 * table and np.all(spreads < table)
 
 
 def test_a_city_car_is_sized_shorter_than_a_pickup(library):
@@ -156,3 +159,23 @@ def _box(length: float, width: float, height: float) -> np.ndarray:
             a, b = lo, hi
         curves.append(a + t * (b - a))
     return np.concatenate(curves).ravel()
+
+
+def test_a_gaussian_per_class_sizes_the_table_better_than_one():
+    """Each car of the table left out, its proportions given with 3 % of error: the classes'
+    Gaussians (the shipped model) size it better than one Gaussian for the whole table, on the
+    wheelbase and the length, at the median and the mean, and their spreads still cover the
+    truth (``benchmarks/bench_size_table.py``)."""
+    import sys
+
+    from tests.conftest import REPO
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import bench_size_table
+
+    r = bench_size_table.run(0.03, seed=0)
+    one, classes = r["one Gaussian"], r["a Gaussian per class"]
+    for key in ("wheelbase_median", "wheelbase_mean", "length_median", "length_mean"):
+        assert classes[key] < one[key], key
+    assert classes["wheelbase_mean"] < 0.9 * one["wheelbase_mean"]
+    assert classes["within_two_spreads"] >= 0.9 and classes["cars"] == len(published_cars().names)

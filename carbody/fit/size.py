@@ -7,15 +7,19 @@ height *in wheelbases* say how long its wheelbase is likely to be.
 
 The table of published dimensions (``carbody/data/car_dimensions.csv``: length, width,
 height and wheelbase of cars of every class, :func:`published_cars`) gives a Gaussian over the
-logarithms of (wheelbase, width, height, length). The fitted proportions are an observation
+logarithms of (wheelbase, width, height, length) for each class of car: a city car's size goes
+with its proportions otherwise than a pickup's or a van's, and one Gaussian for all of them
+sizes each car 10–25 % worse, each car of the table left out
+(``benchmarks/bench_size_table.py``). The fitted proportions are an observation
 of three differences of those logarithms, as uncertain as the fit's posterior says, together
 (each never less than :attr:`~carbody.policy.FitPolicy.size_proportion_floor`: the posterior
 knows nothing of how real cars differ from the library, nor of the table's own rounding). The
 posterior holds the image scale's own uncertainty (:func:`carbody.fit.solve.scale_spread`): a
 level front view shows the width against the height but neither against the unseen
 wheelbase, so there the two err together. The wheelbase's posterior follows by Gaussian
-conditioning (:func:`estimate_size`): a car whose proportions the photo pins is sized by them;
-one it does not (a level front view) is sized more by what cars usually are.
+conditioning in each class, the classes weighted by how well they explain the proportions
+(:func:`estimate_size`): a car whose proportions the photo pins is sized by them; one it does
+not (a level front view) is sized more by what cars usually are.
 
 This replaces the library mix's own wheelbase (the templates' wheelbases weighted by the mix,
 SPEC's default) for the Gaussian-prior methods: on real photos that was 8.6 % off at the
@@ -40,6 +44,12 @@ from carbody.wireframe import sample_curves
 #: radius in wheelbases joins the fitted height (the templates' tyres: 0.11–0.14, mean 0.12),
 #: its spread the height's uncertainty.
 TYRE_RADIUS_NORM, TYRE_RADIUS_SPREAD_NORM = 120.0, 10.0
+
+#: Each class's covariance of the log dimensions (:attr:`PublishedCars.log_classes`) is drawn
+#: toward this share of the whole table's, weighted as this many cars. Chosen on the table left
+#: one car out at a time (``benchmarks/bench_size_table.py``); 2–10 cars and shares 0.25–1 all
+#: beat one Gaussian for the whole table.
+CLASS_PRIOR_CARS, CLASS_SHRINK = 5.0, 0.5
 
 #: The table's columns, in the order of the Gaussian's axes.
 DIMENSIONS = ("wheelbase_mm", "width_mm", "height_mm", "length_mm")
@@ -66,6 +76,26 @@ class PublishedCars:
         """((4,) mean, (4, 4) covariance) of the log dimensions."""
         logs = np.log(self.dimensions)
         return logs.mean(axis=0), np.cov(logs.T)
+
+    @functools.cached_property
+    def log_classes(self) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        """[(share of the table, (4,) mean, (4, 4) covariance)] of the log dimensions, one
+        Gaussian per class of two cars or more: a city car's size goes with its proportions
+        otherwise than a pickup's. A class's covariance is drawn toward ``CLASS_SHRINK`` × the
+        whole table's as if ``CLASS_PRIOR_CARS`` more cars had it (a class of a few cars says
+        little of its own spread)."""
+        logs = np.log(self.dimensions)
+        _, whole = self.log_gaussian
+        classes = np.asarray(self.classes)
+        out = []
+        for name in sorted(set(self.classes)):
+            own = logs[classes == name]
+            n = len(own)
+            if n < 2:
+                continue
+            w = n / (n + CLASS_PRIOR_CARS)
+            out.append((n / len(logs), own.mean(axis=0), w * np.cov(own.T) + (1.0 - w) * CLASS_SHRINK * whole))
+        return out
 
 
 @functools.lru_cache(maxsize=1)
@@ -149,17 +179,10 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
         noise += J @ keypoint_covariance @ J.T
     variance = np.diagonal(noise)
     observed = np.log(extents / NORMALISED_WHEELBASE)
-    mean, cov = cars.log_gaussian
-    marginal = np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + noise)  # of the observed proportions
-    gain = cov @ _RATIOS.T @ marginal
-    steps = 0.0
-    if scale_move is not None and keypoint_covariance is not None:
-        u = J @ scale_move  # the proportions' move per standard deviation of the scale
-        steps = -float(u @ marginal @ (observed - _RATIOS @ mean))
-    post_mean = mean + gain @ (observed - _RATIOS @ mean)
-    post_cov = cov - gain @ _RATIOS @ cov
+    u = None if scale_move is None or keypoint_covariance is None else J @ scale_move  # per scale SD
+    post_mean, post_cov, steps = _class_posterior(cars.log_classes, observed, noise, u)
     keys = ("length", "width", "height")
-    spread, prior_spread = float(np.sqrt(post_cov[0, 0])), float(np.sqrt(cov[0, 0]))
+    spread, prior_spread = float(np.sqrt(post_cov[0, 0])), float(np.sqrt(cars.log_gaussian[1][0, 0]))
     return SizeEstimate(wheelbase_mm=float(np.exp(post_mean[0])), spread=spread, prior_spread=prior_spread,
                         proportions={k: float(v) for k, v in zip(keys, extents / NORMALISED_WHEELBASE)},
                         proportion_spreads={k: float(v) for k, v in zip(keys, np.sqrt(variance))},
@@ -168,6 +191,32 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
                         dimension_spreads={k.removesuffix("_mm"): float(np.sqrt(v))
                                            for k, v in zip(DIMENSIONS, np.diagonal(post_cov))},
                         scale_steps=steps)
+
+
+def _class_posterior(classes: list[tuple[float, np.ndarray, np.ndarray]], observed: np.ndarray,
+                     noise: np.ndarray, move: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
+    """The log dimensions' posterior given the fitted proportions ``observed`` (3,) (log ratios,
+    :data:`_RATIOS`) with their uncertainty ``noise`` (3, 3), over the table's classes
+    (:attr:`PublishedCars.log_classes`): each class conditioned as a Gaussian, weighted by how
+    well it explains the proportions. Returns ((4,) mean, (4, 4) covariance, the mixture's
+    moments) and how many standard deviations of the image scale the proportions most likely lie
+    off (the log-likelihood's slope along ``move`` (3,), the proportions' move per standard
+    deviation of the scale; 0 without)."""
+    means, covs, logs, slopes = [], [], [], []
+    for share, mean, cov in classes:
+        marginal = np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + noise)  # of the observed proportions
+        residual = observed - _RATIOS @ mean
+        gain = cov @ _RATIOS.T @ marginal
+        means.append(mean + gain @ residual)
+        covs.append(cov - gain @ _RATIOS @ cov)
+        logs.append(np.log(share) - 0.5 * residual @ marginal @ residual + 0.5 * np.linalg.slogdet(marginal)[1])
+        slopes.append(0.0 if move is None else -float(move @ marginal @ residual))
+    weights = np.exp(np.array(logs) - max(logs))
+    weights /= weights.sum()
+    mean = np.einsum("k,kd->d", weights, np.array(means))
+    spread = np.array(means) - mean
+    cov = np.einsum("k,kde->de", weights, np.array(covs)) + np.einsum("k,kd,ke->de", weights, spread, spread)
+    return mean, cov, float(weights @ np.array(slopes))
 
 
 def _extent_rows(points: np.ndarray) -> np.ndarray:
