@@ -179,3 +179,14 @@ def test_a_gaussian_per_class_sizes_the_table_better_than_one():
         assert classes[key] < one[key], key
     assert classes["wheelbase_mean"] < 0.9 * one["wheelbase_mean"]
     assert classes["within_two_spreads"] >= 0.9 and classes["cars"] == len(published_cars().names)
+
+
+def test_a_table_of_single_car_classes_is_read_as_one_gaussian():
+    """No class with two cars: the table is one Gaussian, and the size comes out as before."""
+    cars = published_cars()
+    singles = PublishedCars(cars.names, tuple(f"class {i}" for i in range(len(cars.names))), cars.dimensions)
+    assert len(singles.log_classes) == 1
+    share, mean, cov = singles.log_classes[0]
+    assert share == 1.0 and np.allclose(mean, cars.log_gaussian[0]) and np.allclose(cov, cars.log_gaussian[1])
+    est = estimate_size(_box(1.7, 0.65, 0.55), None, FLOOR, singles)
+    assert np.isfinite(est.wheelbase_mm) and 2300 < est.wheelbase_mm < 3300 and 0 < est.spread < est.prior_spread

@@ -83,7 +83,7 @@ class PublishedCars:
         Gaussian per class of two cars or more: a city car's size goes with its proportions
         otherwise than a pickup's. A class's covariance is drawn toward ``CLASS_SHRINK`` × the
         whole table's as if ``CLASS_PRIOR_CARS`` more cars had it (a class of a few cars says
-        little of its own spread)."""
+        little of its own spread). A table with no class of two cars is one Gaussian."""
         logs = np.log(self.dimensions)
         _, whole = self.log_gaussian
         classes = np.asarray(self.classes)
@@ -95,7 +95,7 @@ class PublishedCars:
                 continue
             w = n / (n + CLASS_PRIOR_CARS)
             out.append((n / len(logs), own.mean(axis=0), w * np.cov(own.T) + (1.0 - w) * CLASS_SHRINK * whole))
-        return out
+        return out or [(1.0, *self.log_gaussian)]  # (no class of two cars: the table as one)
 
 
 @functools.lru_cache(maxsize=1)
