@@ -81,8 +81,9 @@ Definitions (per photo):
   fitted camera, far triangles first (painter's order by the triangle centroid's distance from
   the camera), each pixel keeping the nearest one's owner. The photo's figure is the mean
   distance of each annotated wheel's centroid from its matched tyre's visible centroid (matched
-  as above, to the visible centroids: a near hub can project onto a hidden far one), % of S. Its own error: the same with our visible tyre moved onto the hub the fit
-  found and trusted (the centroid less our tyre's offset from its hub, against that hub).
+  as above, but to the visible centroids: a near hub can project onto a hidden far one), % of
+  S. Its own error: the same with our visible tyre moved onto the hub the fit found and trusted
+  (the centroid less our tyre's offset from its hub, against that hub).
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); on three-quarter views (the estimate 15–75° from both ends),
   the **lean**: how much nearer the car's end (−) or side (+) the view found is than the

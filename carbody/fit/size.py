@@ -198,10 +198,10 @@ def _class_posterior(classes: list[tuple[float, np.ndarray, np.ndarray]], observ
     """The log dimensions' posterior given the fitted proportions ``observed`` (3,) (log ratios,
     :data:`_RATIOS`) with their uncertainty ``noise`` (3, 3), over the table's classes
     (:attr:`PublishedCars.log_classes`): each class conditioned as a Gaussian, weighted by how
-    well it explains the proportions. Returns ((4,) mean, (4, 4) covariance, the mixture's
-    moments) and how many standard deviations of the image scale the proportions most likely lie
-    off (the log-likelihood's slope along ``move`` (3,), the proportions' move per standard
-    deviation of the scale; 0 without)."""
+    well it explains the proportions. Returns the mixture's (4,) mean and (4, 4) covariance, and
+    how many standard deviations of the image scale the proportions most likely lie off: the
+    mixture's log-likelihood's slope along ``move`` (3,), the proportions' move per standard
+    deviation of the scale (0 without)."""
     means, covs, logs, slopes = [], [], [], []
     for share, mean, cov in classes:
         marginal = np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + noise)  # of the observed proportions
