@@ -186,7 +186,28 @@ def test_a_table_of_single_car_classes_is_read_as_one_gaussian():
     cars = published_cars()
     singles = PublishedCars(cars.names, tuple(f"class {i}" for i in range(len(cars.names))), cars.dimensions)
     assert len(singles.log_classes) == 1
-    share, mean, cov = singles.log_classes[0]
-    assert share == 1.0 and np.allclose(mean, cars.log_gaussian[0]) and np.allclose(cov, cars.log_gaussian[1])
+    name, share, mean, cov = singles.log_classes[0]
+    assert name == "all" and share == 1.0 and np.allclose(mean, cars.log_gaussian[0]) and np.allclose(cov, cars.log_gaussian[1])
     est = estimate_size(_box(1.7, 0.65, 0.55), None, FLOOR, singles)
     assert np.isfinite(est.wheelbase_mm) and 2300 < est.wheelbase_mm < 3300 and 0 < est.spread < est.prior_spread
+
+
+def test_the_size_says_which_kinds_of_car_it_read_the_proportions_as():
+    """The estimate weighs every class of the table (summing to 1, likeliest first); a city
+    car's proportions read as a city car. The summary names the likeliest class, or two when
+    neither weighs half."""
+    from carbody.fit.report import wheelbase_source
+
+    cars = published_cars()
+    i = cars.names.index("Honda Fit / Jazz GK")
+    wb, width, height, length = cars.dimensions[i]
+    est = estimate_size(_box(length / wb, width / wb, height / wb), None, FLOOR, _without(cars, cars.names[i]))
+    weights = list(est.classes.values())
+    assert set(est.classes) == set(cars.classes) and abs(sum(weights) - 1) < 1e-9 and weights == sorted(weights, reverse=True)
+    assert next(iter(est.classes)) == "city"
+    line = wheelbase_source({"wheelbase_from": "proportions", "size": est.as_dict()})
+    assert line.startswith("from its proportions, ±") and "read as city" in line
+    split = dict(est.as_dict(), classes={"suv": 0.4, "crossover": 0.31, "city": 0.29})
+    assert "read as suv 40 % or crossover 31 %" in wheelbase_source({"wheelbase_from": "proportions", "size": split})
+    even = dict(split, classes={"suv": 0.3, "crossover": 0.1, "city": 0.6 / 2, "van": 0.3})
+    assert "read as" not in wheelbase_source({"wheelbase_from": "proportions", "size": even})

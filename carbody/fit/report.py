@@ -209,12 +209,23 @@ def fit_notes(report: dict) -> list[str]:
     return lines + ["note: " + n for n in notes]
 
 
+#: The size's summary names the class of car its proportions read as when it weighs this much,
+#: else the two likeliest when together they do.
+READ_AS_SHARE = 0.5
+
+
 def wheelbase_source(report: dict) -> str:
     """Where the report's wheelbase came from, for a person: ``"told"``, ``"camera distance"``,
-    ``"library mix"``, or from the proportions with the estimate's spread."""
+    ``"library mix"``, or from the proportions with the estimate's spread and the classes of car
+    the table reads them as (``READ_AS_SHARE``)."""
     size = report.get("size")
     if report["wheelbase_from"] == "proportions" and size is not None:
-        return f"from its proportions, ±{size['spread_pct']:.0f} %; give --wheelbase if known"
+        top = list((size.get("classes") or {}).items())[:2]
+        if top and top[0][1] >= READ_AS_SHARE:
+            top = top[:1]
+        read_as = ", read as " + " or ".join(f"{k.replace('_', ' ')} {100 * v:.0f} %" for k, v in top) \
+            if top and sum(v for _, v in top) >= READ_AS_SHARE else ""
+        return f"from its proportions, ±{size['spread_pct']:.0f} %{read_as}; give --wheelbase if known"
     return report["wheelbase_from"]
 
 

@@ -78,12 +78,12 @@ class PublishedCars:
         return logs.mean(axis=0), np.cov(logs.T)
 
     @functools.cached_property
-    def log_classes(self) -> list[tuple[float, np.ndarray, np.ndarray]]:
-        """[(share of the table, (4,) mean, (4, 4) covariance)] of the log dimensions, one
+    def log_classes(self) -> list[tuple[str, float, np.ndarray, np.ndarray]]:
+        """[(class, share of the table, (4,) mean, (4, 4) covariance)] of the log dimensions, one
         Gaussian per class of two cars or more: a city car's size goes with its proportions
         otherwise than a pickup's. A class's covariance is drawn toward ``CLASS_SHRINK`` × the
         whole table's as if ``CLASS_PRIOR_CARS`` more cars had it (a class of a few cars says
-        little of its own spread). A table with no class of two cars is one Gaussian."""
+        little of its own spread). A table with no class of two cars is one Gaussian ("all")."""
         logs = np.log(self.dimensions)
         _, whole = self.log_gaussian
         classes = np.asarray(self.classes)
@@ -94,8 +94,8 @@ class PublishedCars:
             if n < 2:
                 continue
             w = n / (n + CLASS_PRIOR_CARS)
-            out.append((n / len(logs), own.mean(axis=0), w * np.cov(own.T) + (1.0 - w) * CLASS_SHRINK * whole))
-        return out or [(1.0, *self.log_gaussian)]  # (no class of two cars: the table as one)
+            out.append((name, n / len(logs), own.mean(axis=0), w * np.cov(own.T) + (1.0 - w) * CLASS_SHRINK * whole))
+        return out or [("all", 1.0, *self.log_gaussian)]  # (no class of two cars: the table as one)
 
 
 @functools.lru_cache(maxsize=1)
@@ -121,6 +121,8 @@ class SizeEstimate:
             ratios, in ``proportions``' order): a view pins some of their differences only.
         dimensions_mm, dimension_spreads: {"wheelbase", "width", "height", "length"}: each
             dimension's most likely value (mm) and spread (a fraction), read as the wheelbase is.
+        classes: {class of the table: its weight} (they sum to 1, largest first): which kinds
+            of car the proportions read as.
         scale_steps: how many standard deviations of the image scale the fitted car is most
             likely off by, as the table reads its proportions (0 without ``scale_move``): the
             fit moves the car back along what the marks cannot tell from the scale
@@ -136,6 +138,7 @@ class SizeEstimate:
     dimensions_mm: dict[str, float] | None = None
     dimension_spreads: dict[str, float] | None = None
     scale_steps: float = 0.0
+    classes: dict[str, float] | None = None
 
     def as_dict(self) -> dict:
         return {"wheelbase_mm": self.wheelbase_mm, "spread_pct": 100.0 * self.spread,
@@ -144,7 +147,8 @@ class SizeEstimate:
                 "proportion_spreads_pct": {k: 100.0 * v for k, v in self.proportion_spreads.items()},
                 "dimensions_mm": self.dimensions_mm,
                 "dimension_spreads_pct": {k: 100.0 * v for k, v in (self.dimension_spreads or {}).items()},
-                "scale_steps": self.scale_steps}
+                "scale_steps": self.scale_steps,
+                "classes": {k: round(v, 3) for k, v in (self.classes or {}).items()}}
 
 
 def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, floor: float,
@@ -180,7 +184,7 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
     variance = np.diagonal(noise)
     observed = np.log(extents / NORMALISED_WHEELBASE)
     u = None if scale_move is None or keypoint_covariance is None else J @ scale_move  # per scale SD
-    post_mean, post_cov, steps = _class_posterior(cars.log_classes, observed, noise, u)
+    post_mean, post_cov, steps, weights = _class_posterior(cars.log_classes, observed, noise, u)
     keys = ("length", "width", "height")
     spread, prior_spread = float(np.sqrt(post_cov[0, 0])), float(np.sqrt(cars.log_gaussian[1][0, 0]))
     return SizeEstimate(wheelbase_mm=float(np.exp(post_mean[0])), spread=spread, prior_spread=prior_spread,
@@ -190,20 +194,22 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
                         dimensions_mm={k.removesuffix("_mm"): float(np.exp(m)) for k, m in zip(DIMENSIONS, post_mean)},
                         dimension_spreads={k.removesuffix("_mm"): float(np.sqrt(v))
                                            for k, v in zip(DIMENSIONS, np.diagonal(post_cov))},
-                        scale_steps=steps)
+                        scale_steps=steps,
+                        classes=dict(sorted(((c[0], float(w)) for c, w in zip(cars.log_classes, weights)),
+                                            key=lambda kv: -kv[1])))
 
 
-def _class_posterior(classes: list[tuple[float, np.ndarray, np.ndarray]], observed: np.ndarray,
-                     noise: np.ndarray, move: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
+def _class_posterior(classes: list[tuple[str, float, np.ndarray, np.ndarray]], observed: np.ndarray,
+                     noise: np.ndarray, move: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """The log dimensions' posterior given the fitted proportions ``observed`` (3,) (log ratios,
     :data:`_RATIOS`) with their uncertainty ``noise`` (3, 3), over the table's classes
     (:attr:`PublishedCars.log_classes`): each class conditioned as a Gaussian, weighted by how
     well it explains the proportions. Returns the mixture's (4,) mean and (4, 4) covariance, and
     how many standard deviations of the image scale the proportions most likely lie off: the
     mixture's log-likelihood's slope along ``move`` (3,), the proportions' move per standard
-    deviation of the scale (0 without)."""
+    deviation of the scale (0 without); and each class's weight (k,)."""
     means, covs, logs, slopes = [], [], [], []
-    for share, mean, cov in classes:
+    for _, share, mean, cov in classes:
         marginal = np.linalg.inv(_RATIOS @ cov @ _RATIOS.T + noise)  # of the observed proportions
         residual = observed - _RATIOS @ mean
         gain = cov @ _RATIOS.T @ marginal
@@ -216,7 +222,7 @@ def _class_posterior(classes: list[tuple[float, np.ndarray, np.ndarray]], observ
     mean = np.einsum("k,kd->d", weights, np.array(means))
     spread = np.array(means) - mean
     cov = np.einsum("k,kde->de", weights, np.array(covs)) + np.einsum("k,kd,ke->de", weights, spread, spread)
-    return mean, cov, float(weights @ np.array(slopes))
+    return mean, cov, float(weights @ np.array(slopes)), weights
 
 
 def _extent_rows(points: np.ndarray) -> np.ndarray:
