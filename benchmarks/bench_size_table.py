@@ -12,7 +12,8 @@ the table are compared, both through :func:`carbody.fit.size.estimate_size`:
   proportions (:attr:`carbody.fit.size.PublishedCars.log_classes`).
 
 Printed per noise level: the median and mean absolute error of the wheelbase and of the length
-it gives, and how often the truth lies within two of the estimate's spreads. Each proportion is
+it gives, and how often the truth lies within two of the estimate's spreads; then the
+wheelbase's mean error by class of car. Each proportion is
 taken as uncertain as the noise, and never less than the fit's floor
 (:attr:`~carbody.policy.FitPolicy.size_proportion_floor`).
 
@@ -60,7 +61,7 @@ def run(noise: float, seed: int) -> dict:
     floor = max(noise, FIT_POLICY.size_proportion_floor)  # as the fit: never surer than the policy's floor
     out = {}
     for label, one_class in (("one Gaussian", True), ("a Gaussian per class", False)):
-        wb_err, length_err, within = [], [], []
+        wb_err, length_err, within, by_class = [], [], [], {}
         for i, (wb, width, height, length) in enumerate(cars.dimensions):
             ratios = np.array([length, width, height]) / wb * np.exp(jitter[i])
             est = estimate_size(box_shape(*ratios), None, floor, left_out(cars, i, one_class))
@@ -68,13 +69,17 @@ def run(noise: float, seed: int) -> dict:
             wb_err.append(abs(e))
             length_err.append(abs(np.log(est.dimensions_mm["length"] / length)))
             within.append(abs(e) <= 2 * est.spread)
+            by_class.setdefault(cars.classes[i], []).append(abs(e))
         out[label] = {"wheelbase_median": float(np.median(wb_err)), "wheelbase_mean": float(np.mean(wb_err)),
                       "length_median": float(np.median(length_err)), "length_mean": float(np.mean(length_err)),
-                      "within_two_spreads": float(np.mean(within)), "cars": len(wb_err)}
+                      "within_two_spreads": float(np.mean(within)), "cars": len(wb_err),
+                      "wheelbase_mean_by_class": {c: float(np.mean(v)) for c, v in by_class.items()}}
     return out
 
 
 def main(argv: list[str] | None = None) -> int:
+    from carbody.fit.size import published_cars
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--noise", type=float, nargs="+", default=[0.0, 0.02, 0.03, 0.05],
                         help="the proportions' error, a fraction (one standard deviation of each log ratio)")
@@ -82,14 +87,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     rows = []
+    by_class = {}
     print("| proportions' noise | model | wheelbase: median / mean abs. error | length: median / mean abs. error "
           "| truth within two spreads |")
     print("|---|---|---|---|---|")
     for noise in args.noise:
         for label, r in run(noise, args.seed).items():
             rows.append({"noise": noise, "model": label, **r})
+            by_class[noise, label] = r["wheelbase_mean_by_class"]
             print(f"| {100 * noise:.0f} % | {label} | {100 * r['wheelbase_median']:.1f} / {100 * r['wheelbase_mean']:.1f} % "
                   f"| {100 * r['length_median']:.1f} / {100 * r['length_mean']:.1f} % | {100 * r['within_two_spreads']:.0f} % |")
+    print("\nThe wheelbase's mean abs. error by class of car (one Gaussian / a Gaussian per class):\n")
+    cars = published_cars()
+    classes = sorted(set(cars.classes), key=lambda c: (-cars.classes.count(c), c))
+    print("| proportions' noise | " + " | ".join(f"{c} ({cars.classes.count(c)})" for c in classes) + " |")
+    print("|---|" + "---|" * len(classes))
+    for noise in args.noise:
+        one, per = by_class[noise, "one Gaussian"], by_class[noise, "a Gaussian per class"]
+        print(f"| {100 * noise:.0f} % | " + " | ".join(f"{100 * one[c]:.1f} / {100 * per[c]:.1f}" for c in classes) + " |")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     return 0
