@@ -43,11 +43,10 @@ def box_shape(length: float, width: float, height: float) -> np.ndarray:
 
 def left_out(cars, i: int, one_class: bool):
     """The table without car ``i`` (every car one class with ``one_class``)."""
-    from carbody.fit.size import PublishedCars
+    from dataclasses import replace
 
-    keep = [k for k in range(len(cars.names)) if k != i]
-    classes = tuple("car" if one_class else cars.classes[k] for k in keep)
-    return PublishedCars(tuple(cars.names[k] for k in keep), classes, cars.dimensions[keep])
+    rest = cars.without(cars.names[i])
+    return replace(rest, classes=("car",) * len(rest.names)) if one_class else rest
 
 
 def run(noise: float, seed: int) -> dict:

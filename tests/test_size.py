@@ -1,5 +1,7 @@
 """The car's size from its proportions (carbody.fit.size): what the table of published cars can
 tell, and how the fit's posterior says which proportions a view shows."""
+import sys
+
 import numpy as np
 import pytest
 
@@ -7,16 +9,13 @@ from carbody.camera import View
 from carbody.errors import FitError
 from carbody.fit import fit_wireframe
 from carbody.fit.size import PublishedCars, estimate_size, published_cars
+from tests.conftest import REPO
 from tests.test_fit_solve import _left_out, _observe
 
 FLOOR = 0.03
 
-
-def _without(cars: PublishedCars, *names: str) -> PublishedCars:
-    keep = [i for i, n in enumerate(cars.names) if n not in names]
-    assert len(keep) == len(cars.names) - len(names), names
-    return PublishedCars(tuple(cars.names[i] for i in keep), tuple(cars.classes[i] for i in keep),
-                         cars.dimensions[keep])
+sys.path.insert(0, str(REPO / "benchmarks"))
+from bench_size_table import box_shape as _box  # noqa: E402  (a box of given proportions: its extents)
 
 
 def test_the_table_is_real_cars():
@@ -40,7 +39,7 @@ def test_each_car_of_the_table_is_sized_by_its_proportions_from_the_others():
     for name, (wb, width, height, length) in zip(cars.names, cars.dimensions):
         # a box of the car's proportions, in wheelbases, stands in for its wireframe
         shape = _box(length / wb, width / wb, height / wb)
-        est = estimate_size(shape, None, FLOOR, _without(cars, name))
+        est = estimate_size(shape, None, FLOOR, cars.without(name))
         errors.append(np.log(est.wheelbase_mm / wb))
         spreads.append(est.spread)
     errors, spreads = np.abs(errors), np.array(spreads)
@@ -53,7 +52,7 @@ def test_each_car_of_the_table_is_sized_by_its_proportions_from_the_others():
 def test_a_city_car_is_sized_shorter_than_a_pickup(library):
     """The library's own MINI and Hilux, their rows taken out of the table: each within 10 % of
     its published wheelbase, the MINI's the shorter."""
-    cars = _without(published_cars(), "MINI Hatch 3-door F56", "Toyota Hilux AN120 Double Cab")
+    cars = published_cars().without("MINI Hatch 3-door F56", "Toyota Hilux AN120 Double Cab")
     sizes = {}
     for name in ("MINI Hatch 3-door F56", "Toyota Hilux AN120 Double Cab"):
         t = library.template_names.index(name)
@@ -142,35 +141,11 @@ def test_a_car_with_no_extent_is_refused():
         estimate_size(np.zeros(840), None, FLOOR)
 
 
-def _box(length: float, width: float, height: float) -> np.ndarray:
-    """(840,) a shape vector (normalised units) whose curves span a box of these proportions
-    (in wheelbases): every curve a straight segment between two of the box's corners; the
-    height measured from the ground, a tyre's radius below the wheel centres."""
-    from carbody.fit.size import TYRE_RADIUS_NORM
-
-    lo = np.array([0.0, -0.3 * length * 1000, -TYRE_RADIUS_NORM + 50])
-    hi = np.array([width * 500, 0.7 * length * 1000, height * 1000 - TYRE_RADIUS_NORM])
-    t = np.linspace(0.0, 1.0, 4)[:, None]
-    rng = np.random.default_rng(0)
-    curves = []
-    for k in range(70):
-        a, b = (np.where(rng.random(3) < 0.5, lo, hi) for _ in range(2))
-        if k < 8:  # the box's own corners, so its extents are exact
-            a, b = lo, hi
-        curves.append(a + t * (b - a))
-    return np.concatenate(curves).ravel()
-
-
 def test_a_gaussian_per_class_sizes_the_table_better_than_one():
     """Each car of the table left out, its proportions given with 3 % of error: the classes'
     Gaussians (the shipped model) size it better than one Gaussian for the whole table, on the
     wheelbase and the length, at the median and the mean, and their spreads still cover the
     truth (``benchmarks/bench_size_table.py``)."""
-    import sys
-
-    from tests.conftest import REPO
-
-    sys.path.insert(0, str(REPO / "benchmarks"))
     import bench_size_table
 
     r = bench_size_table.run(0.03, seed=0)
@@ -201,7 +176,7 @@ def test_the_size_says_which_kinds_of_car_it_read_the_proportions_as():
     cars = published_cars()
     i = cars.names.index("Honda Fit / Jazz GK")
     wb, width, height, length = cars.dimensions[i]
-    est = estimate_size(_box(length / wb, width / wb, height / wb), None, FLOOR, _without(cars, cars.names[i]))
+    est = estimate_size(_box(length / wb, width / wb, height / wb), None, FLOOR, cars.without(cars.names[i]))
     weights = list(est.classes.values())
     assert set(est.classes) == set(cars.classes) and abs(sum(weights) - 1) < 1e-9 and weights == sorted(weights, reverse=True)
     assert next(iter(est.classes)) == "city"

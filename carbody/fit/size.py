@@ -71,6 +71,18 @@ class PublishedCars:
     classes: tuple[str, ...]
     dimensions: np.ndarray
 
+    def without(self, *names: str) -> "PublishedCars":
+        """This table less the cars named (each car left out in turn: the benchmarks, the tests).
+
+        Raises:
+            FitError: a name not in the table."""
+        missing = set(names) - set(self.names)
+        if missing:
+            raise FitError(f"not in the table of published cars: {', '.join(sorted(missing))}")
+        keep = [i for i, n in enumerate(self.names) if n not in names]
+        return PublishedCars(tuple(self.names[i] for i in keep), tuple(self.classes[i] for i in keep),
+                             self.dimensions[keep])
+
     @functools.cached_property
     def log_gaussian(self) -> tuple[np.ndarray, np.ndarray]:
         """((4,) mean, (4, 4) covariance) of the log dimensions."""
