@@ -84,6 +84,9 @@ Definitions (per photo):
   as above, but to the visible centroids: a near hub can project onto a hidden far one), % of
   S. Its own error: the same with our visible tyre moved onto the hub the fit found and trusted
   (the centroid less our tyre's offset from its hub, against that hub).
+- **Wheels placed apart from the body**: would tyres of their own, each moved from the fitted
+  hub onto the hub the fit found and trusted, meet the target? Both wheel measures again with
+  every such hub (and its visible tyre) moved so and the wheels matched again; the others stay.
 - **Summary**: outcome counts; the view within 15° of the estimate counted over all photos (one
   without a body is not within); on three-quarter views (the estimate 15–75° from both ends),
   the **lean**: how much nearer the car's end (−) or side (+) the view found is than the
@@ -469,15 +472,16 @@ def visible_tyre_centres(camera: dict, control_points: np.ndarray, body_step: Pa
 
 
 def tyres_like_for_like(photo: Photo, camera: dict, control_points: np.ndarray, folder: Path,
-                        wheels: dict | None) -> tuple[float | None, float | None]:
+                        wheels: dict | None) -> tuple[float | None, float | None, float | None]:
     """(mean distance px of the annotated wheels' centroids from their matched tyres' visible
     centroids, the same with our tyres moved onto the hubs the fit found and trusted —the
-    measure's own error—): None where not measured (module doc)."""
+    measure's own error—, and the photo's figure with every such tyre moved so, matched again:
+    wheels placed apart from the body): None where not measured (module doc)."""
     from carbody.fit.wheels import WHEELS
 
     annotated = annotated_wheel_centres(photo)
     if not len(annotated) or not (folder / "body.step").is_file():
-        return None, None
+        return None, None, None
     w, h = photo.meta["image_size"]
     hubs = projected_wheel_centres(camera, control_points)
     seen = visible_tyre_centres(camera, control_points, folder / "body.step", (h, w))
@@ -489,7 +493,27 @@ def tyres_like_for_like(photo: Photo, camera: dict, control_points: np.ndarray, 
     distance = float(np.mean([np.linalg.norm(annotated[i] - seen[j]) for i, j, _ in pairs]))
     own = [float(np.linalg.norm(annotated[i] - (seen[j] - hubs[j]) - found[WHEELS[j]]))
            for i, j, _ in pairs if WHEELS[j] in found]
-    return distance, (float(np.mean(own)) if own else None)
+    moved = on_found_hubs(seen, hubs, found)
+    on_hubs = float(np.mean([d for _, _, d in wheel_matches(annotated, moved)]))
+    return distance, (float(np.mean(own)) if own else None), on_hubs
+
+
+def on_found_hubs(points: np.ndarray, hubs: np.ndarray, found: dict[str, np.ndarray]) -> np.ndarray:
+    """(4, 2) px: ``points`` (one per wheel, :data:`WHEELS` order) moved with their hubs ``hubs``
+    onto the hubs ``found`` (by wheel name); the others as they are."""
+    from carbody.fit.wheels import WHEELS
+
+    shift = np.array([found[w] - hubs[k] if w in found else np.zeros(2) for k, w in enumerate(WHEELS)])
+    return np.asarray(points, float) + shift
+
+
+def wheels_on_hubs_px(photo: Photo, camera: dict, control_points: np.ndarray, wheels: dict | None) -> float:
+    """The mean wheel-centre distance (px) with each hub the fit found and trusted in place of the
+    fitted car's, matched again: what wheels placed apart from the body, on those hubs, would
+    measure (module doc). The photo has annotated wheels."""
+    hubs = projected_wheel_centres(camera, control_points)
+    moved = on_found_hubs(hubs, hubs, trusted_hubs(wheels))
+    return float(np.mean([d for _, _, d in wheel_matches(annotated_wheel_centres(photo), moved)]))
 
 
 def camera_check_px(report: dict, marks: dict[str, list[float]]) -> float | None:
@@ -574,7 +598,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "wheelbase_err_pct": None, "wheelbase_spread_pct": None,
            "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
            "hood": None, "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
-           "tyre_dist_pct": None, "tyre_own_pct": None,
+           "tyre_dist_pct": None, "tyre_own_pct": None, "wheel_on_hubs_pct": None, "tyre_on_hubs_pct": None,
            "rims_view_deg": None, "rims": None, "rims_lean_deg": None, "rims_diff_deg": None,
            "fit_rims_diff_deg": None,
            "fallback": None, "camera_check_px": None,
@@ -610,9 +634,11 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
         row["wheel_dv_pct"] = 100.0 * dv_px / size
         hub_px = centroid_to_hub_px(photo, camera, cp, fit.get("wheels"))
         row["centroid_to_hub_pct"] = None if hub_px is None else 100.0 * hub_px / size
-        tyre_px, own_px = tyres_like_for_like(photo, camera, cp, folder, fit.get("wheels"))
+        tyre_px, own_px, on_hubs_px = tyres_like_for_like(photo, camera, cp, folder, fit.get("wheels"))
         row["tyre_dist_pct"] = None if tyre_px is None else 100.0 * tyre_px / size
         row["tyre_own_pct"] = None if own_px is None else 100.0 * own_px / size
+        row["tyre_on_hubs_pct"] = None if on_hubs_px is None else 100.0 * on_hubs_px / size
+        row["wheel_on_hubs_pct"] = 100.0 * wheels_on_hubs_px(photo, camera, cp, fit.get("wheels")) / size
     row["rims"] = rims_view(photo.image, camera, cp, fit.get("wheels"))
     if row["rims"]:
         row["rims_view_deg"] = float(np.mean([found + angular_offset(a, found) for a in row["rims"].values()])) % 360.0
@@ -969,6 +995,8 @@ def summarise(rows: list[dict]) -> dict:
         "median_tyre_own_pct": median_or_none(r["tyre_own_pct"] for r in rows),
         "tyre_own_measured": sum(r["tyre_own_pct"] is not None for r in rows),
         "centroid_to_hub_measured": sum(r["centroid_to_hub_pct"] is not None for r in rows),
+        "median_wheel_on_hubs_pct": median_or_none(r.get("wheel_on_hubs_pct") for r in rows),
+        "median_tyre_on_hubs_pct": median_or_none(r.get("tyre_on_hubs_pct") for r in rows),
         "photos_with_hubs": sum(bool(r["hubs_found"]) for r in rows),
         "library_arch_range": [low, high], "arches_measured": len(arches),
         "fitted_arch_range": [min(map(min, arches)), max(map(max, arches))] if arches else None,
@@ -1122,6 +1150,9 @@ def summary_table(s: dict) -> str:
              f"{fmt(s['median_tyre_dist_pct'], '.1f') or '–'} (of {s['tyre_dist_measured']}) |",
              f"| its own error: the same with our tyres on the hubs the fit found, % | "
              f"{fmt(s['median_tyre_own_pct'], '.1f') or '–'} (of {s['tyre_own_measured']}) |",
+             f"| wheels placed apart from the body, on every hub the fit trusted: median wheel-centre distance "
+             f"/ like for like, % | {fmt(s['median_wheel_on_hubs_pct'], '.1f') or '–'} / "
+             f"{fmt(s['median_tyre_on_hubs_pct'], '.1f') or '–'} |",
              "| wheel arches: radius ÷ wheelbase, fitted range; photos with an arch outside the templates' "
              f"range ({s['library_arch_range'][0]:.3f}–{s['library_arch_range'][1]:.3f}) | "
              + (f"{s['fitted_arch_range'][0]:.3f}–{s['fitted_arch_range'][1]:.3f}; "

@@ -47,6 +47,16 @@ def test_each_annotated_wheel_takes_its_own_projected_centre(bench):
     assert sorted((i, j) for i, j, _ in bench.wheel_matches(annotated, projected)) == [(0, 0), (1, 1)]
 
 
+def test_a_wheel_placed_on_its_trusted_hub_moves_with_it_and_an_untrusted_one_stays(bench):
+    hubs = np.array([[10.0, 50.0], [30.0, 50.0], [80.0, 40.0], [95.0, 40.0]])
+    seen = hubs + [0.0, 4.0]  # visible tyres a little below their hubs
+    wheels = {"wheels": [{"wheel": "front_left", "found_px": [12.0, 47.0], "weight": 0.9},
+                         {"wheel": "rear_left", "found_px": [70.0, 45.0], "weight": 0.3}]}
+    moved = bench.on_found_hubs(seen, hubs, bench.trusted_hubs(wheels))
+    assert moved[0] == pytest.approx([12.0, 51.0])  # the tyre keeps its offset from the hub
+    assert moved[1:] == pytest.approx(seen[1:])     # the rear hub's weight is too low to trust
+
+
 def test_the_lean_is_signed_toward_the_cars_nearer_end_on_three_quarter_views_only(bench):
     assert bench.view_lean_deg(35.0, 50.0) == pytest.approx(-15.0)      # front-left, found nearer the front
     assert bench.view_lean_deg(305.0, 290.0) == pytest.approx(-15.0)    # front-right, found nearer the front
@@ -227,12 +237,15 @@ def test_metrics_are_finite_where_defined(bench_run):
         assert all(0.05 < a < 0.3 for a in r["arches_per_wheelbase"])  # an arch, not a point or the whole side
         assert (r["tyre_dist_pct"] is None) == (r["wheels_annotated"] == 0)
         assert r["tyre_dist_pct"] is None or 0.0 <= r["tyre_dist_pct"] < 100.0
+        assert (r["wheel_on_hubs_pct"] is None) == (r["wheels_annotated"] == 0)
         # the instrument projects with the fit's own camera: the marks land where the fit says
         assert r["camera_check_px"] < 0.05
         # the rims' view only from rear wheels the fit found and trusted
         trusted = {w["wheel"] for w in (json.loads((bench_run[0] / r["photo"] / "report.json").read_text())
                                         ["fit"]["wheels"] or {}).get("wheels", []) if w["weight"] > 0.6}
         assert set(r["rims"]) <= {w for w in trusted if w.startswith("rear")}
+        if r["wheel_on_hubs_pct"] is not None and not trusted:  # wheels on the hubs trusted: none, as fitted
+            assert r["wheel_on_hubs_pct"] == pytest.approx(r["wheel_dist_pct"])
         assert (r["rims_view_deg"] is None) == (not r["rims"])
 
 
