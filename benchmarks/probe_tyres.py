@@ -9,8 +9,11 @@ asks whether the photo's wheels can be found without the fitted camera, as the p
 1. **Renders** (``WORKDIR/renders``): photo-like renders of the library's 33 templates, one
    expansion of each and 30 blends (:func:`carbody.view.dataset.shoot_photo`, every
    :class:`~carbody.view.photo.PhotoLook` switch on, 384 px), each with a mask of the wheels'
-   visible pixels. The mask is a second render of the same shot with the tyres and rims white
-   and all else black, so the body hides what it hides in the photo.
+   visible pixels. The mask is a second render of the same shot with the wheels white and all
+   else black, so the body hides what it hides in the photo. The data set's wheel is a black
+   tyre round a flat grey disc; unless ``--plain-wheels``, each rim is made more like a real one
+   (:func:`varied_rims`): 4–10 spokes of varied width over a dark gap, or a disc, grey or in the
+   car's paint (white, black, silver most of all).
 2. **A small U-Net** (``WORKDIR/tyres.pt``, about 240 000 weights): the car's box, squared and
    scaled to 160 px, in; each pixel's chance of being a wheel out. Trained with random margins,
    shifts, mirroring, exposure, white balance, blur and noise.
@@ -51,14 +54,54 @@ CHANNELS = (12, 24, 48, 64)
 BELOW_MARKS = 0.15
 #: The square crop's margin round the car's box (at run time; training draws 5–35 %).
 MARGIN = 0.25
-#: The mesh names whose visible pixels are a wheel's.
-WHEEL_PARTS = ("tyre", "rim")
+#: The mesh names whose visible pixels are a wheel's (``wheel_paint``: a rim in the car's paint).
+WHEEL_PARTS = ("tyre", "rim", "wheel_paint")
 SEED = 7
 
 
-def render(out: Path, images_per_body: int, max_bodies: int | None = None) -> int:
+def varied_rims(meshes: list, rng: np.random.Generator) -> list:
+    """``meshes`` with each flat ``rim`` disc of :func:`carbody.view.dataset.wheel_meshes` made
+    more like a real rim: a solid disc one time in five, else a lip, a hub and 4–10 spokes over a
+    dark gap (named ``tyre``: it takes the tyre's black). Each wheel's rim is grey (``rim``) or in
+    the car's paint (``wheel_paint``), four times in ten."""
+    from carbody.render.mesh import FaceMesh
+
+    def disc(x: float, yc: float, zc: float, r0: float, r1: float, segments: int = 40):
+        a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+        ring = lambda r: np.c_[np.full(segments, x), yc + r * np.cos(a), zc + r * np.sin(a)]  # noqa: E731
+        i, j = np.arange(segments), (np.arange(segments) + 1) % segments
+        return np.vstack([ring(r0), ring(r1)]), np.r_[np.c_[i, i + segments, j], np.c_[j, i + segments, j + segments]]
+
+    out = []
+    for mesh in meshes:
+        if mesh.name != "rim":
+            out.append(mesh)
+            continue
+        centre = mesh.vertices[-1]
+        r = float(np.linalg.norm(mesh.vertices[0, 1:] - centre[1:]))
+        x, yc, zc, side = float(mesh.vertices[0, 0]), float(centre[1]), float(centre[2]), float(np.sign(centre[0]))
+        name = "wheel_paint" if rng.random() < 0.4 else "rim"
+        if rng.random() < 0.2:
+            out.append(FaceMesh(name, mesh.vertices, mesh.triangles))
+            continue
+        out.append(FaceMesh("tyre", *disc(x - 2.0 * side, yc, zc, 0.0, r)))           # the gap behind the spokes
+        out.append(FaceMesh(name, *disc(x, yc, zc, rng.uniform(0.8, 0.92) * r, r)))    # the lip
+        out.append(FaceMesh(name, *disc(x + side, yc, zc, 0.0, rng.uniform(0.12, 0.25) * r)))  # the hub
+        n, phase = int(rng.integers(4, 11)), rng.uniform(0, 2 * np.pi)
+        inner, outer = rng.uniform(0.03, 0.08) * r, rng.uniform(0.04, 0.5) * r * np.pi / n
+        for k in range(n):
+            a = phase + 2 * np.pi * k / n
+            along, across = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
+            corners = [0.15 * r * along - inner * across, 0.15 * r * along + inner * across,
+                       0.9 * r * along + outer * across, 0.9 * r * along - outer * across]
+            v = np.array([[x + 0.5 * side, yc + c[0], zc + c[1]] for c in corners])
+            out.append(FaceMesh(name, v, np.array([[0, 1, 2], [0, 2, 3]])))
+    return out
+
+
+def render(out: Path, images_per_body: int, max_bodies: int | None = None, plain_wheels: bool = False) -> int:
     """Photo-like renders and their wheel masks into ``out`` (module docstring, step 1), of the
-    first ``max_bodies`` bodies (None: all): the count."""
+    first ``max_bodies`` bodies (None: all), the rims varied unless ``plain_wheels``: the count."""
     import cv2
 
     import carbody.view.dataset as dataset
@@ -79,6 +122,8 @@ def render(out: Path, images_per_body: int, max_bodies: int | None = None) -> in
         meshes, _ = dataset.surfaced_meshes(spec, vary=vary, seed=b)
         if meshes is None:
             continue
+        if not plain_wheels:
+            meshes = varied_rims(meshes, np.random.default_rng([SEED, 5, b]))
         scene = Scene(meshes, size=(RENDER_PX, RENDER_PX), antialias=2)
         white = {name: (1.0, 1.0, 1.0) if name in WHEEL_PARTS else (0.0, 0.0, 0.0) for name in {m.name for m in meshes}}
         label = Look(paint=(0, 0, 0), glass=(0, 0, 0), colours=white, background=(0.0, 0.0, 0.0),
@@ -263,6 +308,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--images-per-body", type=int, default=20)
     parser.add_argument("--epochs", type=int, default=14)
     parser.add_argument("--threads", type=int, default=2, help="torch's threads for training")
+    parser.add_argument("--plain-wheels", action="store_true",
+                        help="the data set's plain wheels (a flat grey disc), not varied rims")
     parser.add_argument("--json", type=Path, help="also write the rows and summary here")
     args = parser.parse_args(argv)
     import torch
@@ -271,7 +318,8 @@ def main(argv: list[str] | None = None) -> int:
     renders, weights = args.workdir / "renders", args.workdir / "tyres.pt"
     start = time.perf_counter()
     if not renders.is_dir():
-        print(f"rendered {render(renders, args.images_per_body)} pictures in {time.perf_counter() - start:.0f} s")
+        count = render(renders, args.images_per_body, plain_wheels=args.plain_wheels)
+        print(f"rendered {count} pictures in {time.perf_counter() - start:.0f} s")
     if not weights.is_file():
         start = time.perf_counter()
         train(renders, weights, args.epochs)

@@ -40,3 +40,23 @@ def test_the_crop_maps_the_cars_box_into_the_networks_square(probe):
     corners = np.array([[100, 50, 1], [400, 200, 1]], float) @ M.T
     assert corners[:, 0] == pytest.approx([16.0, 144.0])  # the longer side spans 1 / 1.25 of it
     assert corners.mean(axis=0) == pytest.approx([80.0, 80.0])
+
+
+def test_varied_rims_stay_on_their_wheels_and_keep_a_dark_gap_behind_the_spokes(probe):
+    from carbody.library import load_library
+    from carbody.view.dataset import wheel_meshes
+
+    library = load_library()
+    wheels = wheel_meshes(library.points(library.original(0)) * 2.7, tyre_radius_mm=320.0)
+    discs = [m for m in wheels if m.name == "rim"]
+    centres = np.array([m.vertices[-1] for m in discs])
+    radius = np.linalg.norm(discs[0].vertices[0, 1:] - centres[0, 1:])
+    varied = probe.varied_rims(wheels, np.random.default_rng(1))
+    added = [m for m in varied if all(m is not w for w in wheels)]
+    rims = [m for m in added if m.name in ("rim", "wheel_paint")]
+    gaps = [m for m in added if m.name == "tyre"]
+    assert len(rims) > len(discs) and gaps  # spokes, lips and hubs over a dark gap, not four discs
+    for m in rims + gaps:
+        d = np.linalg.norm(m.vertices[:, None, :] - centres[None], axis=2).min(axis=1)
+        assert (d <= radius + 3.0).all()  # on a wheel, within its rim
+    assert all(any(m is w for m in varied) for w in wheels if w.name != "rim")  # tyres and wells kept
