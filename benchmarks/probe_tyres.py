@@ -24,8 +24,13 @@ asks whether the photo's wheels can be found without the fitted camera, as the p
    the people's wheel polygons; the annotated wheels matched one-to-one to the wheels found,
    least total distance (``bench_real_photos.wheel_matches``), and the mean distance of their
    centroids, % of S. That is the like-for-like measure's own kind (visible against visible).
+4. **With the fit** (``--fitted DIR``, a ``bench_real_photos.py --out`` folder): the like-for-like
+   measure of the fitted car's visible tyres (``bench_real_photos.visible_tyre_centres``), then
+   again with each tyre moved onto the centroid of the nearest wheel found, where one lies
+   within ``--near`` % of S (each value given). What the network's wheels would add to the fit.
 
-    python benchmarks/probe_tyres.py --workdir W [--images-per-body 20] [--epochs 14] [--threads 2] [--json FILE]
+    python benchmarks/probe_tyres.py --workdir W [--images-per-body 20] [--epochs 14] [--threads 2] \
+        [--plain-wheels] [--fitted DIR [--near 3 5]] [--json FILE]
 
 Each step is skipped when its output is already in the work folder. Nothing here is shipped, and
 no real photo is used in training.
@@ -301,6 +306,45 @@ def measure(weights: Path, data: Path) -> list[dict]:
     return rows
 
 
+def with_the_fit(weights: Path, data: Path, fitted: Path, near_pct: list[float]) -> list[dict]:
+    """One row per real photo with annotated wheels and a body in ``fitted`` (module docstring,
+    step 4): ``fitted_pct``, the like-for-like distance of the fitted tyres, and ``moved_pct``
+    {near: the same with the tyres moved onto the wheels found within ``near`` % of S}."""
+    import cv2
+    import torch
+
+    net = network()
+    net.load_state_dict(torch.load(weights))
+    net.eval()
+    rows = []
+    for photo in real.load_photos(data):
+        annotated, folder = real.annotated_wheel_centres(photo), fitted / photo.name
+        if not len(annotated) or not (folder / "body.step").is_file():
+            continue
+        report, wireframe = real.fitted(folder)
+        camera, cp = report["fit"]["camera"], wireframe.control_points
+        w, h = photo.meta["image_size"]
+        hubs = real.projected_wheel_centres(camera, cp)
+        seen = real.visible_tyre_centres(camera, cp, folder / "body.step", (h, w))
+        seen = np.where(np.isfinite(seen), seen, hubs)  # a tyre the car hides: its hub
+        size, _ = real.car_image_size(photo)
+        _, found = wheels_found(net, cv2.imread(str(photo.image))[..., ::-1].copy(), marks_box(photo), size)
+
+        def distance(tyres: np.ndarray) -> float:
+            return 100.0 * float(np.mean([d for *_, d in real.wheel_matches(annotated, tyres)])) / size
+
+        moved = {}
+        for near in near_pct:
+            tyres = seen.copy()
+            for k in range(len(tyres)):
+                d = np.linalg.norm(found - seen[k], axis=1) if len(found) else np.array([np.inf])
+                if d.min() < near * size / 100.0:
+                    tyres[k] = found[d.argmin()]
+            moved[near] = distance(tyres)
+        rows.append({"photo": photo.name, "fitted_pct": distance(seen), "moved_pct": moved})
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--workdir", type=Path, required=True, help="renders and weights go here (reused)")
@@ -310,6 +354,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=2, help="torch's threads for training")
     parser.add_argument("--plain-wheels", action="store_true",
                         help="the data set's plain wheels (a flat grey disc), not varied rims")
+    parser.add_argument("--fitted", type=Path, help="a bench_real_photos.py --out folder: the fit's tyres with them")
+    parser.add_argument("--near", type=float, nargs="+", default=[3.0, 5.0],
+                        help="move a fitted tyre onto a wheel found within this %% of S (each value)")
     parser.add_argument("--json", type=Path, help="also write the rows and summary here")
     args = parser.parse_args(argv)
     import torch
@@ -339,6 +386,18 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\nmedian IoU {summary['median_iou']:.2f}; median centroid distance "
           f"{summary['median_distance_pct']:.1f} % of S (of {len(distances)} photos); "
           f"wheels missed {summary['missed']} of {summary['annotated']}")
+    if args.fitted:
+        fit_rows = with_the_fit(weights, args.data, args.fitted, args.near)
+        print("\n| photo | fitted tyres, like for like % | " + " | ".join(f"moved within {n:g} % of S" for n in args.near)
+              + " |\n|---|---|" + "---|" * len(args.near))
+        for r in fit_rows:
+            print(f"| {r['photo']} | {r['fitted_pct']:.1f} | "
+                  + " | ".join(f"{r['moved_pct'][n]:.1f}" for n in args.near) + " |")
+        summary["fitted_median_pct"] = statistics.median(r["fitted_pct"] for r in fit_rows)
+        summary["moved_median_pct"] = {n: statistics.median(r["moved_pct"][n] for r in fit_rows) for n in args.near}
+        print(f"\nlike for like, median of {len(fit_rows)} photos: fitted {summary['fitted_median_pct']:.2f} %; "
+              + "; ".join(f"moved within {n:g} %: {v:.2f} %" for n, v in summary["moved_median_pct"].items()))
+        rows = {"alone": rows, "with_the_fit": fit_rows}
     if args.json:
         args.json.write_text(json.dumps({"rows": rows, "summary": summary}, indent=1))
     return 0
