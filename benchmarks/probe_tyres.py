@@ -30,7 +30,7 @@ asks whether the photo's wheels can be found without the fitted camera, as the p
    within ``--near`` % of S (each value given). What the network's wheels would add to the fit.
 
     python benchmarks/probe_tyres.py --workdir W [--images-per-body 20] [--epochs 14] [--threads 2] \
-        [--plain-wheels] [--fitted DIR [--near 3 5]] [--json FILE]
+        [--seed 0] [--plain-wheels] [--fitted DIR [--near 3 5]] [--json FILE]
 
 Each step is skipped when its output is already in the work folder. Nothing here is shipped, and
 no real photo is used in training.
@@ -352,6 +352,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--images-per-body", type=int, default=20)
     parser.add_argument("--epochs", type=int, default=14)
     parser.add_argument("--threads", type=int, default=2, help="torch's threads for training")
+    parser.add_argument("--seed", type=int, default=0, help="the training's seed (the renders' is fixed)")
     parser.add_argument("--plain-wheels", action="store_true",
                         help="the data set's plain wheels (a flat grey disc), not varied rims")
     parser.add_argument("--fitted", type=Path, help="a bench_real_photos.py --out folder: the fit's tyres with them")
@@ -369,7 +370,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rendered {count} pictures in {time.perf_counter() - start:.0f} s")
     if not weights.is_file():
         start = time.perf_counter()
-        train(renders, weights, args.epochs)
+        train(renders, weights, args.epochs, args.seed)
         print(f"trained in {time.perf_counter() - start:.0f} s")
     if not (args.data / "parts.json").is_file():
         print(f"no real photos at {args.data}: nothing to measure")
