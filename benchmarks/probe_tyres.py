@@ -61,6 +61,7 @@ BELOW_MARKS = 0.15
 MARGIN = 0.25
 #: The mesh names whose visible pixels are a wheel's (``wheel_paint``: a rim in the car's paint).
 WHEEL_PARTS = ("tyre", "rim", "wheel_paint")
+#: The renders' seed: the bodies, the blends, the rims and every shot follow from it.
 SEED = 7
 
 
