@@ -108,6 +108,16 @@ def varied_rims(meshes: list, rng: np.random.Generator) -> list:
 def render(out: Path, images_per_body: int, max_bodies: int | None = None, plain_wheels: bool = False) -> int:
     """Photo-like renders and their wheel masks into ``out`` (module docstring, step 1), of the
     first ``max_bodies`` bodies (None: all), the rims varied unless ``plain_wheels``: the count."""
+    import carbody.view.dataset as dataset
+
+    size, dataset.IMAGE_SIZE = dataset.IMAGE_SIZE, RENDER_PX  # the backdrop and ground are drawn at it
+    try:
+        return _render(out, images_per_body, max_bodies, plain_wheels)
+    finally:
+        dataset.IMAGE_SIZE = size  # the data set's own renders keep theirs
+
+
+def _render(out: Path, images_per_body: int, max_bodies: int | None, plain_wheels: bool) -> int:
     import cv2
 
     import carbody.view.dataset as dataset
@@ -116,7 +126,6 @@ def render(out: Path, images_per_body: int, max_bodies: int | None = None, plain
     from carbody.templates import load_templates
     from carbody.view.photo import PhotoLook
 
-    dataset.IMAGE_SIZE = RENDER_PX  # the backdrop and ground are drawn at the module's size
     library, rows = load_library(), [row for row, _ in load_templates()]
     bodies = dataset.choose_bodies(library, rows, 2, SEED)
     bodies += dataset.blend_bodies(library, rows, sorted({b.template for b in bodies}), 30, SEED)
