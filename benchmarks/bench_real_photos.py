@@ -471,6 +471,15 @@ def visible_tyre_centres(camera: dict, control_points: np.ndarray, body_step: Pa
     return centres
 
 
+def tyres_seen(photo: Photo, camera: dict, control_points: np.ndarray, folder: Path) -> tuple[np.ndarray, np.ndarray]:
+    """((4, 2) px the fitted hubs, (4, 2) px the centroids of the tyres our fitted car shows,
+    :func:`visible_tyre_centres`, a hidden tyre's being its hub) of the run in ``folder``."""
+    w, h = photo.meta["image_size"]
+    hubs = projected_wheel_centres(camera, control_points)
+    seen = visible_tyre_centres(camera, control_points, folder / "body.step", (h, w))
+    return hubs, np.where(np.isfinite(seen), seen, hubs)  # a tyre the car hides: its hub
+
+
 def tyres_like_for_like(photo: Photo, camera: dict, control_points: np.ndarray, folder: Path,
                         wheels: dict | None) -> tuple[float | None, float | None, float | None]:
     """(mean distance px of the annotated wheels' centroids from their matched tyres' visible
@@ -482,10 +491,7 @@ def tyres_like_for_like(photo: Photo, camera: dict, control_points: np.ndarray, 
     annotated = annotated_wheel_centres(photo)
     if not len(annotated) or not (folder / "body.step").is_file():
         return None, None, None
-    w, h = photo.meta["image_size"]
-    hubs = projected_wheel_centres(camera, control_points)
-    seen = visible_tyre_centres(camera, control_points, folder / "body.step", (h, w))
-    seen = np.where(np.isfinite(seen), seen, hubs)  # a tyre the car hides: its hub
+    hubs, seen = tyres_seen(photo, camera, control_points, folder)
     found = trusted_hubs(wheels)
     # matched to the tyres seen, not to the hubs: a near wheel's hub can project onto a far one's
     # (te32: its front right and rear left hubs 3 px apart), whose tyre the body hides

@@ -289,14 +289,20 @@ def wheels_found(net, rgb: np.ndarray, box, size: float) -> tuple[np.ndarray, np
     return pixels, centroids[keep].reshape(-1, 2)
 
 
-def measure(weights: Path, data: Path) -> list[dict]:
-    """One row per real photo with annotated wheels (module docstring, step 3)."""
-    import cv2
+def trained_network(weights: Path):
+    """The U-Net with the weights saved at ``weights``, ready to read photos."""
     import torch
 
     net = network()
     net.load_state_dict(torch.load(weights))
-    net.eval()
+    return net.eval()
+
+
+def measure(net, data: Path) -> list[dict]:
+    """One row per real photo with annotated wheels (module docstring, step 3); ``found_px``
+    holds the centroids of the wheels found."""
+    import cv2
+
     rows = []
     for photo in real.load_photos(data):
         annotated = real.annotated_wheel_centres(photo)
@@ -311,34 +317,25 @@ def measure(weights: Path, data: Path) -> list[dict]:
         iou = float((pixels & (human > 0)).sum() / max(1, (pixels | (human > 0)).sum()))
         pairs = real.wheel_matches(annotated, found) if len(found) else []
         rows.append({"photo": photo.name, "annotated": len(annotated), "found": len(found), "iou": iou,
-                     "missed": len(annotated) - len(pairs),
+                     "found_px": found.tolist(), "missed": len(annotated) - len(pairs),
                      "distance_pct": 100.0 * float(np.mean([d for *_, d in pairs])) / size if pairs else None})
     return rows
 
 
-def with_the_fit(weights: Path, data: Path, fitted: Path, near_pct: list[float]) -> list[dict]:
+def with_the_fit(found_px: dict[str, list], data: Path, fitted: Path, near_pct: list[float]) -> list[dict]:
     """One row per real photo with annotated wheels and a body in ``fitted`` (module docstring,
-    step 4): ``fitted_pct``, the like-for-like distance of the fitted tyres, and ``moved_pct``
-    {near: the same with the tyres moved onto the wheels found within ``near`` % of S}."""
-    import cv2
-    import torch
-
-    net = network()
-    net.load_state_dict(torch.load(weights))
-    net.eval()
+    step 4), given the wheels found in each ({photo: [[u, v], ...]}, :func:`measure`):
+    ``fitted_pct``, the like-for-like distance of the fitted tyres, and ``moved_pct`` {near: the
+    same with the tyres moved onto the wheels found within ``near`` % of S}."""
     rows = []
     for photo in real.load_photos(data):
         annotated, folder = real.annotated_wheel_centres(photo), fitted / photo.name
         if not len(annotated) or not (folder / "body.step").is_file():
             continue
         report, wireframe = real.fitted(folder)
-        camera, cp = report["fit"]["camera"], wireframe.control_points
-        w, h = photo.meta["image_size"]
-        hubs = real.projected_wheel_centres(camera, cp)
-        seen = real.visible_tyre_centres(camera, cp, folder / "body.step", (h, w))
-        seen = np.where(np.isfinite(seen), seen, hubs)  # a tyre the car hides: its hub
+        _, seen = real.tyres_seen(photo, report["fit"]["camera"], wireframe.control_points, folder)
         size, _ = real.car_image_size(photo)
-        _, found = wheels_found(net, cv2.imread(str(photo.image))[..., ::-1].copy(), marks_box(photo), size)
+        found = np.asarray(found_px.get(photo.name, []), float).reshape(-1, 2)
 
         def distance(tyres: np.ndarray) -> float:
             return 100.0 * float(np.mean([d for *_, d in real.wheel_matches(annotated, tyres)])) / size
@@ -385,7 +382,8 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.data / "parts.json").is_file():
         print(f"no real photos at {args.data}: nothing to measure")
         return 0
-    rows = measure(weights, args.data)
+    net = trained_network(weights)
+    rows = measure(net, args.data)
     print("\n| photo | wheels annotated / found | missed | IoU | centroid distance, % of S |\n|---|---|---|---|---|")
     for r in rows:
         d = "–" if r["distance_pct"] is None else f"{r['distance_pct']:.1f}"
@@ -398,7 +396,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{summary['median_distance_pct']:.1f} % of S (of {len(distances)} photos); "
           f"wheels missed {summary['missed']} of {summary['annotated']}")
     if args.fitted:
-        fit_rows = with_the_fit(weights, args.data, args.fitted, args.near)
+        fit_rows = with_the_fit({r["photo"]: r["found_px"] for r in rows}, args.data, args.fitted, args.near)
         print("\n| photo | fitted tyres, like for like % | " + " | ".join(f"moved within {n:g} % of S" for n in args.near)
               + " |\n|---|---|" + "---|" * len(args.near))
         for r in fit_rows:
