@@ -18,7 +18,8 @@ asks whether the photo's wheels can be found without the fitted camera, as the p
    scaled to 160 px, in; each pixel's chance of being a wheel out. Trained with random margins,
    shifts, mirroring, exposure, white balance, blur and noise.
 3. **The real photos** (``../shared/realphotos``; skipped where absent): the box of the marks,
-   taken 15 % of its height lower (people mark no tyre's bottom), goes in. Each pixel over 0.5
+   taken 15 % of its height lower (people mark no tyre's bottom), goes in; with ``--box
+   fitted``, the box of the ``--fitted`` car's control points, where that run made a body. Each pixel over 0.5
    is a wheel's; each connected part larger than 3 (1 % of S)² is a wheel found (S: the car's
    image size, as ``bench_real_photos.py`` takes it). Per photo: the IoU of those pixels with
    the people's wheel polygons; the annotated wheels matched one-to-one to the wheels found,
@@ -27,10 +28,11 @@ asks whether the photo's wheels can be found without the fitted camera, as the p
 4. **With the fit** (``--fitted DIR``, a ``bench_real_photos.py --out`` folder): the like-for-like
    measure of the fitted car's visible tyres (``bench_real_photos.visible_tyre_centres``), then
    again with each tyre moved onto the centroid of the nearest wheel found, where one lies
-   within ``--near`` % of S (each value given). What the network's wheels would add to the fit.
+   within ``--near`` % of S (each value given), and its hub with it; and both by hub, the
+   headline measure. No fit can follow the network's wheels further than that.
 
     python benchmarks/probe_tyres.py --workdir W [--images-per-body 20] [--epochs 14] [--threads 2] \
-        [--seed 0] [--plain-wheels] [--fitted DIR [--near 3 5]] [--json FILE]
+        [--seed 0] [--plain-wheels] [--fitted DIR [--near 3 5] [--box marks|fitted]] [--json FILE]
 
 Each step is skipped when its output is already in the work folder. Nothing here is shipped, and
 no real photo is used in training.
@@ -298,9 +300,22 @@ def trained_network(weights: Path):
     return net.eval()
 
 
-def measure(net, data: Path) -> list[dict]:
+def fitted_box(folder: Path) -> tuple[float, float, float, float]:
+    """The box of the fitted car's control points (both halves) in the photo, px, of a
+    ``bench_real_photos.py --out`` run's ``folder``."""
+    from carbody.fit.report import project_with_camera
+
+    report, wireframe = real.fitted(folder)
+    points = wireframe.control_points
+    uv = project_with_camera(report["fit"]["camera"], np.vstack([points, points * [-1.0, 1.0, 1.0]]))
+    return (*map(float, uv.min(0)), *map(float, uv.max(0)))
+
+
+def measure(net, data: Path, fitted: Path | None = None) -> list[dict]:
     """One row per real photo with annotated wheels (module docstring, step 3); ``found_px``
-    holds the centroids of the wheels found."""
+    holds the centroids of the wheels found. Given ``fitted`` (a ``bench_real_photos.py --out``
+    folder), the network reads the fitted car's box (:func:`fitted_box`) where the run made a
+    body, not the marks'."""
     import cv2
 
     rows = []
@@ -310,7 +325,9 @@ def measure(net, data: Path) -> list[dict]:
             continue
         rgb = cv2.imread(str(photo.image))[..., ::-1].copy()
         size, _ = real.car_image_size(photo)
-        pixels, found = wheels_found(net, rgb, marks_box(photo), size)
+        body = None if fitted is None else fitted / photo.name
+        box = fitted_box(body) if body is not None and (body / "report.json").is_file() else marks_box(photo)
+        pixels, found = wheels_found(net, rgb, box, size)
         human = np.zeros(pixels.shape, np.uint8)
         for q in photo.parts["wheel"]:
             cv2.fillPoly(human, [np.asarray(q).reshape(-1, 2).round().astype(np.int32)], 1)
@@ -322,33 +339,46 @@ def measure(net, data: Path) -> list[dict]:
     return rows
 
 
+def onto_wheels_found(seen: np.ndarray, hubs: np.ndarray, found: np.ndarray,
+                      near_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """((4, 2) the tyres seen, (4, 2) their hubs), px: each tyre seen moved onto the nearest wheel
+    ``found`` (k, 2) within ``near_px`` of it, and its hub by the same shift; the others as they
+    are."""
+    tyres, centres = np.array(seen, float), np.array(hubs, float)
+    for k in range(len(tyres)):
+        d = np.linalg.norm(found - seen[k], axis=1) if len(found) else np.array([np.inf])
+        if d.min() < near_px:
+            tyres[k] = found[d.argmin()]
+            centres[k] += tyres[k] - seen[k]  # the hub goes with its tyre
+    return tyres, centres
+
+
 def with_the_fit(found_px: dict[str, list], data: Path, fitted: Path, near_pct: list[float]) -> list[dict]:
     """One row per real photo with annotated wheels and a body in ``fitted`` (module docstring,
     step 4), given the wheels found in each ({photo: [[u, v], ...]}, :func:`measure`):
     ``fitted_pct``, the like-for-like distance of the fitted tyres, and ``moved_pct`` {near: the
-    same with the tyres moved onto the wheels found within ``near`` % of S}."""
+    same with the tyres moved onto the wheels found within ``near`` % of S}; ``hubs_pct`` and
+    ``moved_hubs_pct``, the same by hub (the headline measure), each hub moved with its tyre
+    (:func:`onto_wheels_found`)."""
     rows = []
     for photo in real.load_photos(data):
         annotated, folder = real.annotated_wheel_centres(photo), fitted / photo.name
         if not len(annotated) or not (folder / "body.step").is_file():
             continue
         report, wireframe = real.fitted(folder)
-        _, seen = real.tyres_seen(photo, report["fit"]["camera"], wireframe.control_points, folder)
+        hubs, seen = real.tyres_seen(photo, report["fit"]["camera"], wireframe.control_points, folder)
         size, _ = real.car_image_size(photo)
         found = np.asarray(found_px.get(photo.name, []), float).reshape(-1, 2)
 
         def distance(tyres: np.ndarray) -> float:
             return 100.0 * float(np.mean([d for *_, d in real.wheel_matches(annotated, tyres)])) / size
 
-        moved = {}
+        moved, moved_hubs = {}, {}
         for near in near_pct:
-            tyres = seen.copy()
-            for k in range(len(tyres)):
-                d = np.linalg.norm(found - seen[k], axis=1) if len(found) else np.array([np.inf])
-                if d.min() < near * size / 100.0:
-                    tyres[k] = found[d.argmin()]
-            moved[near] = distance(tyres)
-        rows.append({"photo": photo.name, "fitted_pct": distance(seen), "moved_pct": moved})
+            tyres, centres = onto_wheels_found(seen, hubs, found, near * size / 100.0)
+            moved[near], moved_hubs[near] = distance(tyres), distance(centres)
+        rows.append({"photo": photo.name, "fitted_pct": distance(seen), "moved_pct": moved,
+                     "hubs_pct": distance(hubs), "moved_hubs_pct": moved_hubs})
     return rows
 
 
@@ -363,10 +393,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--plain-wheels", action="store_true",
                         help="the data set's plain wheels (a flat grey disc), not varied rims")
     parser.add_argument("--fitted", type=Path, help="a bench_real_photos.py --out folder: the fit's tyres with them")
+    parser.add_argument("--box", choices=("marks", "fitted"), default="marks",
+                        help="the box the network reads: the marks' (taken lower) or the --fitted car's")
     parser.add_argument("--near", type=float, nargs="+", default=[3.0, 5.0],
                         help="move a fitted tyre onto a wheel found within this %% of S (each value)")
     parser.add_argument("--json", type=Path, help="also write the rows and summary here")
     args = parser.parse_args(argv)
+    if args.box == "fitted" and args.fitted is None:
+        parser.error("--box fitted needs --fitted DIR")
     import torch
 
     torch.set_num_threads(args.threads)
@@ -383,7 +417,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"no real photos at {args.data}: nothing to measure")
         return 0
     net = trained_network(weights)
-    rows = measure(net, args.data)
+    rows = measure(net, args.data, args.fitted if args.box == "fitted" else None)
     print("\n| photo | wheels annotated / found | missed | IoU | centroid distance, % of S |\n|---|---|---|---|---|")
     for r in rows:
         d = "–" if r["distance_pct"] is None else f"{r['distance_pct']:.1f}"
@@ -397,15 +431,22 @@ def main(argv: list[str] | None = None) -> int:
           f"wheels missed {summary['missed']} of {summary['annotated']}")
     if args.fitted:
         fit_rows = with_the_fit({r["photo"]: r["found_px"] for r in rows}, args.data, args.fitted, args.near)
-        print("\n| photo | fitted tyres, like for like % | " + " | ".join(f"moved within {n:g} % of S" for n in args.near)
-              + " |\n|---|---|" + "---|" * len(args.near))
+        print("\n| photo | like for like: fitted | " + " | ".join(f"moved within {n:g} % of S" for n in args.near)
+              + " | by hub: fitted | " + " | ".join(f"moved within {n:g} %" for n in args.near)
+              + " |\n|---|---|" + "---|" * (2 * len(args.near) + 1))
         for r in fit_rows:
             print(f"| {r['photo']} | {r['fitted_pct']:.1f} | "
-                  + " | ".join(f"{r['moved_pct'][n]:.1f}" for n in args.near) + " |")
-        summary["fitted_median_pct"] = statistics.median(r["fitted_pct"] for r in fit_rows)
+                  + " | ".join(f"{r['moved_pct'][n]:.1f}" for n in args.near) + f" | {r['hubs_pct']:.1f} | "
+                  + " | ".join(f"{r['moved_hubs_pct'][n]:.1f}" for n in args.near) + " |")
+        median = lambda key: statistics.median(r[key] for r in fit_rows)  # noqa: E731
+        summary["fitted_median_pct"], summary["hubs_median_pct"] = median("fitted_pct"), median("hubs_pct")
         summary["moved_median_pct"] = {n: statistics.median(r["moved_pct"][n] for r in fit_rows) for n in args.near}
-        print(f"\nlike for like, median of {len(fit_rows)} photos: fitted {summary['fitted_median_pct']:.2f} %; "
-              + "; ".join(f"moved within {n:g} %: {v:.2f} %" for n, v in summary["moved_median_pct"].items()))
+        summary["moved_hubs_median_pct"] = {n: statistics.median(r["moved_hubs_pct"][n] for r in fit_rows)
+                                            for n in args.near}
+        print(f"\nmedians of {len(fit_rows)} photos, like for like: fitted {summary['fitted_median_pct']:.2f} %; "
+              + "; ".join(f"moved within {n:g} %: {v:.2f} %" for n, v in summary["moved_median_pct"].items())
+              + f". By hub: fitted {summary['hubs_median_pct']:.2f} %; "
+              + "; ".join(f"moved within {n:g} %: {v:.2f} %" for n, v in summary["moved_hubs_median_pct"].items()))
         rows = {"alone": rows, "with_the_fit": fit_rows}
     if args.json:
         args.json.write_text(json.dumps({"rows": rows, "summary": summary}, indent=1))

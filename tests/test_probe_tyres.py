@@ -60,3 +60,15 @@ def test_varied_rims_stay_on_their_wheels_and_keep_a_dark_gap_behind_the_spokes(
         d = np.linalg.norm(m.vertices[:, None, :] - centres[None], axis=2).min(axis=1)
         assert (d <= radius + 3.0).all()  # on a wheel, within its rim
     assert all(any(m is w for m in varied) for w in wheels if w.name != "rim")  # tyres and wells kept
+
+
+def test_a_tyre_near_a_wheel_found_moves_onto_it_and_takes_its_hub_along(probe):
+    seen = np.array([[100.0, 200.0], [300.0, 200.0], [500.0, 210.0], [700.0, 210.0]])
+    hubs = seen - [0.0, 12.0]  # each hub above its visible tyre's centroid
+    found = np.array([[104.0, 203.0], [520.0, 230.0], [900.0, 100.0]])
+    tyres, centres = probe.onto_wheels_found(seen, hubs, found, near_px=10.0)
+    assert np.allclose(tyres[0], found[0]) and np.allclose(centres[0], found[0] - [0.0, 12.0])
+    assert np.allclose(tyres[1:], seen[1:]) and np.allclose(centres[1:], hubs[1:])  # none within 10 px
+    tyres, _ = probe.onto_wheels_found(seen, hubs, found, near_px=30.0)
+    assert np.allclose(tyres[2], found[1])
+    assert np.allclose(probe.onto_wheels_found(seen, hubs, np.zeros((0, 2)), 30.0)[0], seen)  # nothing found
