@@ -19,8 +19,8 @@ asks whether the photo's wheels can be found without the fitted camera, as the p
    shifts, mirroring, exposure, white balance, blur and noise.
 3. **The real photos** (``../shared/realphotos``; skipped where absent): the box of the marks,
    taken 15 % of its height lower (people mark no tyre's bottom), goes in; with ``--box
-   fitted``, the box of the ``--fitted`` car's control points, where that run made a body. Each pixel over 0.5
-   is a wheel's; each connected part larger than 3 (1 % of S)² is a wheel found (S: the car's
+   fitted``, the box of the ``--fitted`` car's control points, where that run made a body.
+   Each pixel over 0.5 is a wheel's; each connected part larger than 3 (1 % of S)² is a wheel found (S: the car's
    image size, as ``bench_real_photos.py`` takes it). Per photo: the IoU of those pixels with
    the people's wheel polygons; the annotated wheels matched one-to-one to the wheels found,
    least total distance (``bench_real_photos.wheel_matches``), and the mean distance of their
