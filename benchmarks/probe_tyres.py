@@ -304,10 +304,11 @@ def fitted_box(folder: Path) -> tuple[float, float, float, float]:
     """The box of the fitted car's control points (both halves) in the photo, px, of a
     ``bench_real_photos.py --out`` run's ``folder``."""
     from carbody.fit.report import project_with_camera
+    from carbody.wireframe import MIRROR
 
     report, wireframe = real.fitted(folder)
     points = wireframe.control_points
-    uv = project_with_camera(report["fit"]["camera"], np.vstack([points, points * [-1.0, 1.0, 1.0]]))
+    uv = project_with_camera(report["fit"]["camera"], np.vstack([points, points * MIRROR]))
     return (*map(float, uv.min(0)), *map(float, uv.max(0)))
 
 
