@@ -159,7 +159,8 @@ def runtime_version() -> str:
 
 def main_speed(args) -> int:
     """Per-picture inference as ``carbody view --box`` runs it (decode + crop + resize + the
-    exported network in ONNX Runtime with mirror averaging, no torch), wall and CPU time,
+    exported network in ONNX Runtime with mirror averaging, no torch; a second look at the near
+    end of a three-quarter view, :mod:`carbody.view.ends`), wall and CPU time,
     one BLAS thread and ``--threads`` threads for OpenCV and the network (1: as a batch worker
     runs it; the cores: as ``carbody view`` runs it, OpenCV's default); a ``.pt`` is exported to a temporary ``.onnx``
     first. The load average is printed: on the shared machine the wall time grows with it, the
@@ -167,6 +168,7 @@ def main_speed(args) -> int:
     import cv2
     from threadpoolctl import threadpool_limits
 
+    from carbody.view.ends import END_LOOK_KEY, end_look, is_three_quarter
     from carbody.view.onnx_net import load_onnx_classifier, onnx_weights_for, probabilities
     from carbody.view.predict import crop_to_box, predict_view, read_image
     from carbody.view.train import to_square_input
@@ -193,18 +195,23 @@ def main_speed(args) -> int:
           f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} (1/5/15 min); {runtime_version()}, {size} px input, "
           f"{args.threads} thread(s); picture {Path(image).name if photos else 'synthetic'} with its box")
     print("| call | wall ms median | wall ms 90th pct | CPU ms median |\n|---|---|---|---|")
-    x = to_square_input(crop_to_box(read_image(image), box), size)[None]
-    calls = [("whole call (decode + crop + network), ",
-              lambda mirror: predict_view(image, weights, mirror_average=mirror, box=box),
-              ("one pass", "with mirror averaging (default)")),
-             ("network alone, ", lambda mirror: probabilities(x, onnx_weights_for(weights), mirror),
-              ("one pass", "with mirror averaging"))]
+    picture = read_image(image)
+    x = to_square_input(crop_to_box(picture, box), size)[None]
+    view = predict_view(picture, weights, box=box, end_looks=False).theta_deg
+    second = is_three_quarter(view) and bool(load_onnx_classifier(onnx_weights_for(weights)).meta.get(END_LOOK_KEY))
+    x_end = to_square_input(crop_to_box(end_look(picture, box, view), box), size)[None]
+    net = lambda: probabilities(x, onnx_weights_for(weights), True)  # noqa: E731
+    calls = [("whole call (decode + crop + network), mirror averaged, the default"
+              + (": two looks" if second else ": one look"), lambda: predict_view(image, weights, box=box)),
+             ("whole call, mirror averaged, one look", lambda: predict_view(image, weights, box=box, end_looks=False)),
+             ("network alone, mirror averaged, one look", net),
+             ("network alone, mirror averaged, two looks",
+              lambda: (net(), probabilities(x_end, onnx_weights_for(weights), True)))]
     with threadpool_limits(1):
-        for head, call, tails in calls:
-            for mirror in (False, True):
-                wall, cpu = timed_ms(lambda: call(mirror), args.repeats)
-                print(f"| {head}{tails[mirror]} | {statistics.median(wall):.2f} | {np.percentile(wall, 90):.2f} | "
-                      f"{statistics.median(cpu):.2f} |")
+        for label, call in calls:
+            wall, cpu = timed_ms(call, args.repeats)
+            print(f"| {label} | {statistics.median(wall):.2f} | {np.percentile(wall, 90):.2f} | "
+                  f"{statistics.median(cpu):.2f} |")
     print(f"load average after: {' / '.join(f'{x:.1f}' for x in os.getloadavg())}")
     return 0
 
@@ -420,15 +427,22 @@ def main_real(args) -> int:
     print("| input | within ±15° | within ±30° | front/rear confusions | left/right confusions | median error (°) "
           "| three-quarter views: median lean ° (n) |")
     print("|---|---|---|---|---|---|---|")
+    from carbody.view.ends import END_LOOK_KEY
+
+    looks = [("", True)] + ([(" (one look: the whole car's alone)", False)] if meta.get(END_LOOK_KEY) else [])
     results = {}
-    for label, boxes in settings.items():
-        probs = predict_probabilities([p["image"] for p in photos], args.weights, boxes=boxes)
+    for (label, boxes), (tag, end_looks) in ((kv, lk) for kv in list(settings.items()) for lk in looks):
+        if boxes[0] is None and not end_looks:
+            continue                                     # no box, no second look
+        label = label + tag
+        probs = predict_probabilities([p["image"] for p in photos], args.weights, boxes=boxes,
+                                      end_looks=end_looks)
         from carbody.view.labels import continuous_estimate
 
         pred = np.array([continuous_estimate(q) for q in probs])
         s = real_scores(pred, truth)
         results[label] = (s, probs, pred)
-        if label.startswith("box of the marks"):     # and what the marks' names say of the view
+        if label == "box of the marks (carbody view -k)":     # and what the marks' names say of the view
             from carbody.view.marks import combine_with_marks
 
             probs_m = np.array([combine_with_marks(q, p["marks"]) for q, p in zip(probs, photos)])

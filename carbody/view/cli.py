@@ -1,4 +1,4 @@
-"""``carbody render-dataset``, ``carbody train-view`` and ``carbody view``."""
+"""``carbody render-dataset``, ``carbody end-looks``, ``carbody train-view`` and ``carbody view``."""
 from __future__ import annotations
 
 import argparse
@@ -66,6 +66,16 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-calibrate", action="store_true",
                    help="do not fit the temperature on the validation split after training")
     p.set_defaults(func=_train_view)
+
+    p = sub.add_parser("end-looks", help="write the near end's looks of a set of framed renders",
+                       description="Copy a render-dataset folder's framed three-quarter views (--photo-like) "
+                                   "with everything beyond 40-60 %% of the car's box from its near end painted "
+                                   "grey: the second look carbody view takes to tell which way a car faces. "
+                                   "Train on it beside the renders (train-view SRC DST ...).")
+    p.add_argument("src", help="folder written by render-dataset --photo-like")
+    p.add_argument("dst", help="new folder to write (images/<angle>/*.png, manifest.csv, dataset.json)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the share of the box kept")
+    p.set_defaults(func=_end_looks)
 
     p = sub.add_parser("calibrate-view", help="fit the view classifier's temperature on rendered held-out cars",
                        description="Fit one temperature T (logits / T before the softmax) that minimises the "
@@ -161,6 +171,14 @@ def _train_view(args) -> int:
         r = calibrate_weights(args.output, args.dataset, progress=False)
         print(f"temperature {r['temperature']:.3f} on {r['images']} held-out renders (ECE {r['ece_before']:.3f} "
               f"-> {r['ece_after']:.3f})")
+    return 0
+
+
+def _end_looks(args) -> int:
+    from carbody.view.ends import write_end_looks
+
+    n = write_end_looks(args.src, args.dst, seed=args.seed)
+    print(f"{args.dst}: {n} end looks of {args.src}'s framed three-quarter views")
     return 0
 
 

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from carbody.errors import ViewError
+from carbody.view.ends import END_LOOK_KEY
 from carbody.view.labels import MIRROR_PERMUTATION, N_CLASSES
 
 #: The exported network shipped with the package (written from ``view_mobilenetv2.pt``).
@@ -147,6 +148,8 @@ def export_weights(pt_path: str | Path, onnx_path: str | Path) -> dict:
             "mean": float(payload.get("mean", 0.5)), "std": float(payload.get("std", 0.25)),
             "classes_deg": list(payload.get("classes_deg", [])), "temperature": float(payload.get("temperature", 1.0)),
             "source": pt_path.name, "source_sha256": hashlib.sha256(pt_path.read_bytes()).hexdigest()}
+    if payload.get(END_LOOK_KEY):
+        meta[END_LOOK_KEY] = payload[END_LOOK_KEY]
     graph = helper.make_graph(
         nodes, "carbody_view_mobilenetv2",
         [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["N", 3, size, size])],

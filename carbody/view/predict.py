@@ -317,7 +317,7 @@ def crop_to_box(image: np.ndarray, box, fill: float = BOX_FILL) -> np.ndarray:
 
 def predict_probabilities(images: list | np.ndarray, weights: str | Path | None = None,
                           mirror_average: bool = True, boxes: list | None = None,
-                          temperature: float | None = None) -> np.ndarray:
+                          temperature: float | None = None, end_looks: bool = True) -> np.ndarray:
     """(B, 24) class probabilities of a batch of pictures (paths or arrays): through the exported
     network in ONNX Runtime (:mod:`carbody.view.onnx_net`, no torch to import) for the
     shipped weights or an ``.onnx``, through torch for a ``.pt`` file.
@@ -327,7 +327,12 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
             (:func:`crop_to_box`).
         temperature: divides the logits before the softmax; None: the weights' calibrated one
             (1 when they have none).
+        end_looks: a picture with a box seen three-quarter on gets a second look at its near end
+            alone, which settles which way the car faces (:mod:`carbody.view.ends`), when the
+            weights were trained on such looks.
     """
+    from carbody.view.ends import END_LOOK_KEY, combine_looks, end_look, is_three_quarter
+    from carbody.view.labels import continuous_estimate
     from carbody.view.onnx_net import onnx_weights_for, probabilities
     from carbody.view.train import INPUT_SIZE, to_square_input
 
@@ -341,13 +346,28 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
     if exported is not None:
         from carbody.view.onnx_net import load_onnx_classifier
 
-        size = int(load_onnx_classifier(exported).meta.get("input_size", INPUT_SIZE))
+        meta = load_onnx_classifier(exported).meta
+        run = lambda x: probabilities(x, exported, mirror_average, temperature)  # noqa: E731
     else:
         model, meta = load_classifier(str(weights) if weights else None)
-        size = int(meta.get("input_size", INPUT_SIZE))
-    x = np.stack([to_square_input(pic if b is None else crop_to_box(pic, b), size) for pic, b in zip(pics, boxes)])
-    if exported is not None:
-        return probabilities(x, exported, mirror_average, temperature)
+        run = lambda x: _torch_probabilities(model, meta, x, mirror_average, temperature)  # noqa: E731
+    size = int(meta.get("input_size", INPUT_SIZE))
+    p = run(np.stack([to_square_input(pic if b is None else crop_to_box(pic, b), size) for pic, b in zip(pics, boxes)]))
+    if end_looks and meta.get(END_LOOK_KEY):
+        views = [continuous_estimate(q) for q in p]
+        second = [i for i, b in enumerate(boxes) if b is not None and is_three_quarter(views[i])]
+        if second:
+            ends = run(np.stack([to_square_input(crop_to_box(end_look(pics[i], boxes[i], views[i]), boxes[i]), size)
+                                 for i in second]))
+            for i, q in zip(second, ends):
+                p[i] = combine_looks(p[i], q)
+    return p
+
+
+def _torch_probabilities(model, meta: dict, x: np.ndarray, mirror_average: bool,
+                         temperature: float | None) -> np.ndarray:
+    """(B, 24) float32 class probabilities of (B, S, S, 3) uint8 square pictures through a torch
+    model (:func:`predict_probabilities`)."""
     import torch
 
     from carbody.view.train import to_tensor
@@ -366,7 +386,7 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
 
 
 def predict_view(image, weights: str | Path | None = None, mirror_average: bool = True,
-                 box=None, marks=None) -> ViewPrediction:
+                 box=None, marks=None, end_looks: bool = True) -> ViewPrediction:
     """The view angle of one car picture (path or array); see :class:`ViewPrediction`.
 
     Args:
@@ -381,7 +401,7 @@ def predict_view(image, weights: str | Path | None = None, mirror_average: bool 
         ImageError: unreadable, empty or tiny picture.
         ViewError: missing or bad weights, a bad box.
     """
-    p = predict_probabilities([image], weights, mirror_average, boxes=[box])[0]
+    p = predict_probabilities([image], weights, mirror_average, boxes=[box], end_looks=end_looks)[0]
     if marks:
         from carbody.view.marks import combine_with_marks
 

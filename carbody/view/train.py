@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from carbody.errors import ViewError
+from carbody.view.ends import END_LOOK_KEY
 from carbody.view.labels import CLASS_ANGLES_DEG, MIRROR_PERMUTATION, N_CLASSES
 
 #: Network input side, pixels (paper: 64); a weights file says its own (``input_size``).
@@ -345,6 +346,8 @@ def save_weights(model, output: Path, config: TrainConfig, hist: History, datase
     folders = dataset_folders(dataset_dir)
     meta_path = folders[0] / "dataset.json"
     dataset_meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    end_looks = [d.name for d in folders if (d / "dataset.json").exists()
+                 and END_LOOK_KEY in json.loads((d / "dataset.json").read_text())]
     payload = {
         "format": "carbody-view-mobilenetv2/1",
         "state_dict": {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()},
@@ -364,6 +367,8 @@ def save_weights(model, output: Path, config: TrainConfig, hist: History, datase
                     "seed": dataset_meta.get("seed"), "variation": dataset_meta.get("variation"),
                     "folders": [d.name for d in folders]},
     }
+    if end_looks:    # the near end's looks too: predict_probabilities takes its second look
+        payload[END_LOOK_KEY] = {"folders": end_looks}
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = output.with_name(f".{output.name}.{os.getpid()}.tmp")
     torch.save(payload, tmp)
@@ -467,7 +472,9 @@ def average_weights(weights: list[str | Path], output: str | Path) -> dict:
             state[k] = mean.to(v.dtype)
         else:          # BatchNorm's batch counters
             state[k] = max((q["state_dict"][k] for q in payloads), key=int)
-    payload = {k: first[k] for k in SOUP_SAME} | {
+    if any(bool(q.get(END_LOOK_KEY)) != bool(first.get(END_LOOK_KEY)) for q in payloads):
+        raise ViewError("some weights learnt the near end's looks and some did not; a soup needs one kind")
+    payload = {k: first[k] for k in SOUP_SAME} | {k: first[k] for k in (END_LOOK_KEY,) if k in first} | {
         "state_dict": state,
         "config": {"soup": len(payloads), "init": start(first)},
         "history": {"train_loss": [], "train_acc": [], "val_loss": [], "val_acc": [],   # trained by none
