@@ -114,7 +114,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     crop.add_argument("--box", type=float, nargs=4, metavar=("X0", "Y0", "X1", "Y1"), default=None,
                       help="the car's box in pixels (u right, v down): the picture is cropped to it as "
                            "the training renders frame their cars; much better when the car fills "
-                           "little of the photo")
+                           "little of the photo. A three-quarter view gets a second look at the car's "
+                           "near end, which tells which way it faces")
     crop.add_argument("-k", "--keypoints", default=None, metavar="FILE",
                       help="keypoint file of the picture (project JSON, COCO, labelme): crop to the box "
                            "of its marks, grown by 12 %% of its larger side, and weigh the views by "
