@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from carbody.errors import ImageError, ViewError
+from carbody.view.ends import END_LOOK_KEY
 from carbody.view.labels import (CLASS_ANGLES_DEG, MIRROR_PERMUTATION, N_CLASSES, angular_difference,
                                  class_of, continuous_estimate, mirror_class)
 from tests.conftest import run_cli
@@ -281,6 +282,8 @@ def test_two_data_sets_train_together_only_when_they_hold_out_the_same_cars(toy_
     render_dataset(second, count=48, seed=0, bodies_per_template=1, surface_body=toy_body, progress=False,
                    templates=["Toyota Camry XV70", "Volvo V60", "Ford F-150 SuperCrew 5.5 ft",
                               "Mazda MX-5 ND", "Honda City e:HEV"])
+    info = json.loads((second / "dataset.json").read_text())     # as `carbody end-looks` marks its sets
+    (second / "dataset.json").write_text(json.dumps(info | {END_LOOK_KEY: {"images": 48}}))
     rows = read_datasets([toy_dataset, second])
     assert len(rows) == len(read_manifest(toy_dataset)) + len(read_manifest(second)) == 96 + 48
     assert all(Path(r["file"]).is_absolute() and Path(r["file"]).is_file() for r in rows)
@@ -289,6 +292,7 @@ def test_two_data_sets_train_together_only_when_they_hold_out_the_same_cars(toy_
                                                                   augment=False), progress=False)
     _, meta = load_classifier(str(out))
     assert meta["dataset"]["images"] == 144 and meta["dataset"]["folders"] == [toy_dataset.name, "second"]
+    assert meta[END_LOOK_KEY] == {"folders": ["second"]}      # so predict_probabilities takes two looks
 
     other = tmp_path / "other"
     shutil.copytree(second, other)
@@ -338,6 +342,11 @@ def test_a_soup_is_the_mean_of_networks_fine_tuned_from_one_start(toy_dataset, t
     train_view_classifier(toy_dataset, other, TrainConfig(**quick, init=str(tuned[0])), progress=False)
     with pytest.raises(ViewError, match="one start"):
         average_weights([tuned[0], other], tmp_path / "x.pt")
+    assert END_LOOK_KEY not in payload                # no ingredient learnt the near end's looks
+    torch.save(torch.load(tuned[1], weights_only=True) | {END_LOOK_KEY: {"folders": ["ends"]}}, tmp_path / "ends.pt")
+    with pytest.raises(ViewError, match="near end's looks"):
+        average_weights([tuned[0], tmp_path / "ends.pt"], tmp_path / "x.pt")
+    assert not (tmp_path / "x.pt").exists()
     bigger = torch.load(tuned[1], weights_only=True) | {"input_size": 96}
     torch.save(bigger, tmp_path / "bigger.pt")
     with pytest.raises(ViewError, match="input_size 96 differs"):

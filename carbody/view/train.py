@@ -462,6 +462,9 @@ def average_weights(weights: list[str | Path], output: str | Path) -> dict:
         if start(q) != start(first):
             raise ViewError(f"{p}: fine-tuned from {start(q)}, {paths[0].name} from {start(first)}; "
                             f"a soup needs one start")
+        if bool(q.get(END_LOOK_KEY)) != bool(first.get(END_LOOK_KEY)):
+            raise ViewError(f"{p}: {'learnt' if q.get(END_LOOK_KEY) else 'did not learn'} the near end's looks, "
+                            f"{paths[0].name} {'did' if first.get(END_LOOK_KEY) else 'did not'}; a soup needs one kind")
         shapes = {k: tuple(v.shape) for k, v in q["state_dict"].items()}
         if shapes != {k: tuple(v.shape) for k, v in first["state_dict"].items()}:
             raise ViewError(f"{p}: its layers differ from {paths[0].name}'s")
@@ -472,8 +475,6 @@ def average_weights(weights: list[str | Path], output: str | Path) -> dict:
             state[k] = mean.to(v.dtype)
         else:          # BatchNorm's batch counters
             state[k] = max((q["state_dict"][k] for q in payloads), key=int)
-    if any(bool(q.get(END_LOOK_KEY)) != bool(first.get(END_LOOK_KEY)) for q in payloads):
-        raise ViewError("some weights learnt the near end's looks and some did not; a soup needs one kind")
     payload = {k: first[k] for k in SOUP_SAME} | {k: first[k] for k in (END_LOOK_KEY,) if k in first} | {
         "state_dict": state,
         "config": {"soup": len(payloads), "init": start(first)},
