@@ -204,9 +204,10 @@ def main_speed(args) -> int:
     calls = [("whole call (decode + crop + network), mirror averaged, the default"
               + (": two looks" if second else ": one look"), lambda: predict_view(image, weights, box=box)),
              ("whole call, mirror averaged, one look", lambda: predict_view(image, weights, box=box, end_looks=False)),
-             ("network alone, mirror averaged, one look", net),
-             ("network alone, mirror averaged, two looks",
-              lambda: (net(), probabilities(x_end, onnx_weights_for(weights), True)))]
+             ("network alone, mirror averaged, one look", net)]
+    if second:      # the picture and the weights take a second look: what it costs the network
+        calls.append(("network alone, mirror averaged, two looks",
+                      lambda: (net(), probabilities(x_end, onnx_weights_for(weights), True))))
     with threadpool_limits(1):
         for label, call in calls:
             wall, cpu = timed_ms(call, args.repeats)
