@@ -56,8 +56,9 @@ def test_the_table_averages_seeds_and_flags_renders_drawn_otherwise(bench, tmp_p
 
 
 def test_the_speed_run_times_every_call_on_the_threads_asked_and_refuses_none(bench, tmp_path):
-    """``--speed`` on a synthetic picture (no photo folder): four timed rows, the thread count in
-    its header; ``--threads 0`` is refused in one line with exit 2."""
+    """``--speed`` on a synthetic picture (no photo folder): a timed row per call (the network's
+    two looks only where the picture is read three-quarter on), the thread count in its header;
+    ``--threads 0`` is refused in one line with exit 2."""
     import subprocess
 
     script = str(REPO / "benchmarks" / "bench_view.py")
@@ -66,7 +67,9 @@ def test_the_speed_run_times_every_call_on_the_threads_asked_and_refuses_none(be
     assert run.returncode == 0, run.stderr
     assert "2 thread(s); picture synthetic" in run.stdout
     rows = [line for line in run.stdout.splitlines() if line.startswith("| whole call") or line.startswith("| network")]
-    assert len(rows) == 4 and all(float(r.split("|")[2]) > 0 for r in rows)
+    two = "two looks" in rows[0]           # a three-quarter view read in the picture: the second look's row too
+    assert len(rows) == 3 + two and all(float(r.split("|")[2]) > 0 for r in rows)
+    assert rows[1].startswith("| whole call, mirror averaged, one look") and "network alone" in rows[2]
     bad = subprocess.run([sys.executable, script, "--speed", "--threads", "0"], capture_output=True, text=True,
                          cwd=REPO, timeout=300)
     assert bad.returncode == 2 and bad.stderr.strip().splitlines() == ["bench_view: --threads must be at least 1, not 0"]
