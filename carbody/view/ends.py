@@ -16,6 +16,7 @@ the picture's left (front-left and rear-right views), else on its right.
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import shutil
 from pathlib import Path
@@ -71,6 +72,14 @@ def end_look(image: np.ndarray, box, view_deg: float, keep: float = END_KEEP) ->
     return out
 
 
+@functools.cache
+def facing_halves() -> np.ndarray:
+    """(24, 24) float: row k weighs each class by whether it faces class k's way, 1 within 90°
+    of it, 0.5 at 90° exactly, else 0."""
+    d = angular_difference(CLASS_ANGLES_DEG[:, None], CLASS_ANGLES_DEG[None, :])
+    return np.where(np.isclose(d, 90.0), 0.5, (d < 90.0).astype(float))
+
+
 def combine_looks(p_whole: np.ndarray, p_end: np.ndarray) -> np.ndarray:
     """(24,) class probabilities from the whole car's look and the near end's look.
 
@@ -80,10 +89,7 @@ def combine_looks(p_whole: np.ndarray, p_end: np.ndarray) -> np.ndarray:
     looks agree the call stands; where they disagree, the surer one wins. The angle comes from
     the whole car, which sees more of it."""
     p_whole = np.asarray(p_whole, dtype=np.float64)
-    p_end = np.asarray(p_end, dtype=np.float64)
-    d = angular_difference(CLASS_ANGLES_DEG[:, None], CLASS_ANGLES_DEG[None, :])
-    half = np.where(np.isclose(d, 90.0), 0.5, (d < 90.0).astype(float))
-    out = p_whole * (half @ p_end)
+    out = p_whole * (facing_halves() @ np.asarray(p_end, dtype=np.float64))
     total = out.sum()
     return (out / total if total > 0 else p_whole).astype(np.float32)
 
@@ -103,16 +109,15 @@ def write_end_looks(src: str | Path, dst: str | Path, seed: int = 0,
     """
     import cv2
 
-    from carbody.view.dataset import row_box
+    from carbody.view.dataset import read_manifest, row_box
 
     src, dst = Path(src), Path(dst)
     if not (src / "manifest.csv").is_file() or not (src / "dataset.json").is_file():
         raise ViewError(f"{src}: no manifest.csv and dataset.json (not a render-dataset folder)")
     if dst.exists():
         raise ViewError(f"{dst}: exists; end looks are written to a new folder")
-    with open(src / "manifest.csv", newline="") as f:
-        reader = csv.DictReader(f)
-        fields, rows = reader.fieldnames, list(reader)
+    rows = read_manifest(src)
+    fields = list(rows[0])
     rng = np.random.default_rng(seed)
     tmp = dst.with_name(f".{dst.name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
