@@ -10,6 +10,7 @@ the training time stored in the weights. Writes ``benchmarks/figures/view_confus
     python benchmarks/bench_view.py [--count 480] [--weights W.pt] [--dataset DIR]
     python benchmarks/bench_view.py --ablation [--epochs 25] [--count 1200] [--workdir DIR]
     python benchmarks/bench_view.py --real [--weights W.pt] [--photos ../shared/realphotos]
+    python benchmarks/bench_view.py --looks [--weights W.pt] [--workdir DIR]
     python benchmarks/bench_view.py --speed [--weights W.pt|W.onnx] [--repeats 200] [--threads 1]
     python benchmarks/bench_view.py --photo-ablation [--epochs 40] [--count 4800] [--workdir DIR] [--only "B;C"]
                                     [--width 0.5] [--train-seed 1] [--measure LABEL=W.pt] [--table]
@@ -479,6 +480,127 @@ def main_real(args) -> int:
     return 0
 
 
+#: The ways the two looks may vote (``--looks``): each maps the whole car's class probabilities p
+#: and the near end's q to the call. The shipped rule is :func:`carbody.view.ends.combine_looks`.
+def _look_rules() -> dict:
+    from carbody.view.ends import combine_looks
+
+    return {
+        "one look: the whole car alone": lambda p, q: p,
+        "the whole car × the near end's facing (shipped)": combine_looks,
+        "the whole car's axis × the near end's facing": lambda p, q: combine_looks(p + np.roll(p, len(p) // 2), q),
+    }
+
+
+def two_looks(pictures: list, boxes: list, weights: str | None) -> tuple[np.ndarray, dict, dict]:
+    """The whole car's (B, 24) probabilities, and per picture the second look takes (a boxed
+    three-quarter view, :func:`carbody.view.ends.is_three_quarter` of the first look's view) its
+    near end's probabilities with mirror averaging (as shipped) and without: two {index: (24,)}."""
+    from carbody.view.ends import end_look, is_three_quarter
+    from carbody.view.labels import continuous_estimate
+    from carbody.view.predict import predict_probabilities, read_image
+
+    pics = [read_image(p) for p in pictures]
+    p = np.concatenate([predict_probabilities(pics[i:i + 64], weights, boxes=boxes[i:i + 64], end_looks=False)
+                        for i in range(0, len(pics), 64)])
+    second = [i for i, b in enumerate(boxes) if b is not None and is_three_quarter(continuous_estimate(p[i]))]
+    looks = {}
+    for mirror in (True, False):
+        q = [predict_probabilities([end_look(pics[i], boxes[i], continuous_estimate(p[i])) for i in second[k:k + 64]],
+                                   weights, mirror_average=mirror, boxes=[boxes[i] for i in second[k:k + 64]],
+                                   end_looks=False) for k in range(0, len(second), 64)]
+        q = np.concatenate(q) if q else np.zeros((0, p.shape[1]))
+        looks[mirror] = dict(zip(second, q))
+    return p, looks[True], looks[False]
+
+
+def voted(p: np.ndarray, ends: dict, rule) -> np.ndarray:
+    """(B, 24): each picture with a second look in ``ends`` voted by ``rule``, the rest as read."""
+    out = p.copy()
+    for i, q in ends.items():
+        v = np.asarray(rule(p[i], q), dtype=np.float64)
+        out[i] = v / v.sum()
+    return out
+
+
+def facing_read(probs: np.ndarray, view_deg: float) -> float:
+    """The share of ``probs`` within 45° of ``view_deg`` against that share and its opposite's:
+    how sure the look is that the car faces the ``view_deg`` way rather than the other."""
+    from carbody.view.labels import CLASS_ANGLES_DEG, angular_difference
+
+    near = probs[angular_difference(CLASS_ANGLES_DEG, view_deg) <= 45].sum()
+    far = probs[angular_difference(CLASS_ANGLES_DEG, view_deg + 180.0) <= 45].sum()
+    return float(near / max(near + far, 1e-12))
+
+
+def main_looks(args) -> int:
+    """How the two looks vote (:mod:`carbody.view.ends`), measured where the rule was chosen:
+    the real photos (the car's box and the marks' box) and the held-out cars' photo-like renders
+    (``--workdir``'s ``test_photo``, rendered there when absent). Also the second look alone, and
+    the calibration of each rule on the renders."""
+    import torch
+
+    from carbody.view.calibrate import expected_calibration_error
+    from carbody.view.dataset import read_manifest, row_box
+    from carbody.view.ends import END_LOOK_KEY
+    from carbody.view.labels import CLASS_ANGLES_DEG, angular_difference, continuous_estimate
+    from carbody.view.predict import keypoint_box, load_classifier
+
+    torch.set_num_threads(1)
+    _, meta = load_classifier(args.weights)
+    rules = _look_rules()
+    root = Path(args.photos) if args.photos else REAL_PHOTOS
+    print(f"weights {args.weights or 'shipped'}; the second look with mirror averaging unless said"
+          + ("" if meta.get(END_LOOK_KEY) else "; these weights never learnt the second look (carbody takes "
+             "none with them): what it would say"))
+    if (root / "keypoints").is_dir():
+        photos = real_photo_set(root)
+        truth = np.array([p["estimate_deg"] for p in photos])
+        print(f"\nreal photos: {len(photos)} from {root} (views estimated by eye, ±10°)")
+        print("| box | rule | within ±15° | within ±30° | front/rear confusions | left/right confusions |")
+        print("|---|---|---|---|---|---|")
+        for label, boxes in (("car's box", [p["parts_box"] for p in photos]),
+                             ("marks' box", [keypoint_box(p["marks"]) for p in photos])):
+            p, ends, plain = two_looks([ph["image"] for ph in photos], boxes, args.weights)
+            cases = [(name, ends, rule) for name, rule in rules.items()]
+            cases.append(("shipped, the second look without mirror averaging", plain, rules[list(rules)[1]]))
+            for name, looks, rule in cases:
+                s = real_scores(np.array([continuous_estimate(q) for q in voted(p, looks, rule)]), truth)
+                print(f"| {label} | {name} | {s['within15']:.2f} | {s['within30']:.2f} | {s['front_rear']:.2f} | "
+                      f"{s['left_right']:.2f} |")
+    else:
+        print(f"real photos: none at {root} (the shared folder is not here)")
+    test_dir = Path(args.workdir or tempfile.mkdtemp(prefix="carbody-view-looks-")) / "test_photo"
+    if not (test_dir / "manifest.csv").exists():
+        evaluation_set(test_dir, args.count, args.seed, meta["dataset"]["validation_templates"], photo_like=True)
+    rows = read_manifest(test_dir)
+    boxes = [row_box(r) for r in rows]
+    p, ends, plain = two_looks([test_dir / r["file"] for r in rows], boxes, args.weights)
+    y = np.array([r["class_index"] for r in rows])
+    print(f"\nphoto-like renders of the held-out cars: {len(rows)} from {test_dir}, {len(ends)} given a second look")
+    print("| rule | top-1 | within ±15° | front/rear (≥ 150° off) | ECE of the top class |")
+    print("|---|---|---|---|---|")
+    cases = [(name, ends, rule) for name, rule in rules.items()]
+    cases.append(("shipped, the second look without mirror averaging", plain, rules[list(rules)[1]]))
+    for name, looks, rule in cases:
+        q = voted(p, looks, rule)
+        s = scores(rows, q)
+        print(f"| {name} | {s['top1']:.3f} | {s['within15']:.3f} | {s['front_rear_confusions']:.3f} | "
+              f"{expected_calibration_error(q, y):.3f} |")
+    print("\nthe three-quarter views given a second look: which way the car faces, read right")
+    print("| the car's near end | views | the whole car | the near end alone | the near end, no mirror |")
+    print("|---|---|---|---|---|")
+    for end, front in (("front", True), ("rear", False)):
+        idx = [i for i in ends if (angular_difference(float(rows[i]["theta_deg"]), 0.0) < 90) == front]
+        cells = []
+        for source in (lambda i: p[i], lambda i: ends[i], lambda i: plain[i]):
+            right = [(facing_read(source(i), continuous_estimate(p[i])) > 0.5)
+                     == (angular_difference(continuous_estimate(p[i]), float(rows[i]["theta_deg"])) < 90) for i in idx]
+            cells.append(f"{np.mean(right):.2f}" if idx else "–")
+        print(f"| {end} | {len(idx)} | " + " | ".join(cells) + " |")
+    return 0
+
+
 def recoloured(image: np.ndarray, how: str) -> np.ndarray:
     """The RGB picture with its red pixels (hue within 20° of red, saturation over 0.3) turned to
     their grey (``how="red"``), or all of it grey (``how="grey"``)."""
@@ -807,6 +929,9 @@ def main() -> None:
     ap.add_argument("--verbose", action="store_true", help="--real: one row per photo")
     ap.add_argument("--recolour", action="store_true",
                     help="--real: also classify the car's box with its reds, then all of it, turned grey")
+    ap.add_argument("--looks", action="store_true",
+                    help="how the two looks vote, on the real photos and the held-out cars' photo-like renders "
+                         "(--workdir keeps the renders)")
     ap.add_argument("--speed", action="store_true",
                     help="inference time per picture as carbody view --box runs it (exported network, ONNX Runtime)")
     ap.add_argument("--repeats", type=int, default=200, help="--speed: timed calls per setting")
@@ -816,6 +941,8 @@ def main() -> None:
     os.environ.setdefault("CARBODY_CACHE_DIR", tempfile.mkdtemp(prefix="carbody-bench-"))
     if args.real:
         return main_real(args)
+    if args.looks:
+        return main_looks(args)
     if args.speed:
         return main_speed(args)
     if args.plain_sweep:

@@ -88,3 +88,47 @@ def test_recolouring_turns_the_reds_grey_and_leaves_the_rest(bench):
     assert (red[0, 1] == picture[0, 1]).all() and (red[1] == picture[1]).all()
     grey = bench.recoloured(picture, "grey")
     assert all(len(set(px)) == 1 for px in grey.reshape(-1, 3))
+
+
+def test_the_looks_rules_vote_as_named(bench):
+    """``--looks``' rules: one look keeps the whole car's call; the shipped product lets a sure
+    near end turn a car the whole car read unsure of its end; the axis rule takes the end from the
+    near end alone. Pictures without a second look are left as read."""
+    import numpy as np
+
+    from carbody.view.ends import combine_looks
+    from carbody.view.labels import CLASS_ANGLES_DEG, continuous_estimate
+
+    k30, k210 = (int(np.argmin(abs(CLASS_ANGLES_DEG - a))) for a in (30.0, 210.0))
+    p = np.full(24, 1e-4)
+    p[k30], p[k210] = 0.9, 0.1
+    p /= p.sum()
+    q = np.full(24, 1e-4)
+    q[k210] = 1.0
+    q /= q.sum()
+    rules = bench._look_rules()
+    one, shipped, axis = rules.values()
+    assert np.allclose(one(p, q), p)
+    assert np.allclose(shipped(p, q), combine_looks(p, q))
+    for rule in (shipped, axis):
+        assert abs(continuous_estimate(bench.voted(p[None], {0: q}, rule)[0]) - 210.0) < 10.0
+    assert np.allclose(bench.voted(np.stack([p, p]), {1: q}, shipped)[0], p)       # no second look: as read
+    assert bench.facing_read(q, 210.0) > 0.99 and bench.facing_read(q, 30.0) < 0.01
+
+
+def test_the_looks_run_measures_every_rule_on_renders(bench, tmp_path):
+    """``--looks`` with no photo folder: a few photo-like renders of the held-out cars are drawn
+    into ``--workdir`` and every rule gets a row of shares, the second look's own table too."""
+    import subprocess
+
+    script = str(REPO / "benchmarks" / "bench_view.py")
+    run = subprocess.run([sys.executable, script, "--looks", "--count", "24", "--workdir", str(tmp_path),
+                          "--photos", str(tmp_path / "none")], capture_output=True, text=True, cwd=REPO, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert "real photos: none at" in run.stdout and (tmp_path / "test_photo" / "manifest.csv").is_file()
+    rows = [line.split("|")[1:-1] for line in run.stdout.splitlines()
+            if line.startswith("| one look") or line.startswith("| the whole car") or line.startswith("| shipped")]
+    assert len(rows) == 4
+    assert all(0.0 <= float(cell) <= 1.0 for row in rows for cell in row[1:])
+    ends = [line for line in run.stdout.splitlines() if line.startswith("| front |") or line.startswith("| rear |")]
+    assert len(ends) == 2
