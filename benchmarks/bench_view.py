@@ -480,16 +480,29 @@ def main_real(args) -> int:
     return 0
 
 
-#: The ways the two looks may vote (``--looks``): each maps the whole car's class probabilities p
-#: and the near end's q to the call. The shipped rule is :func:`carbody.view.ends.combine_looks`.
+#: The shipped rule's name among :func:`_look_rules`.
+SHIPPED_RULE = "the whole car × the near end's facing (shipped)"
+
+
 def _look_rules() -> dict:
+    """The ways the two looks may vote (``--looks``): each maps the whole car's class
+    probabilities p and the near end's q to the call. The shipped rule is
+    :func:`carbody.view.ends.combine_looks`."""
     from carbody.view.ends import combine_looks
 
     return {
         "one look: the whole car alone": lambda p, q: p,
-        "the whole car × the near end's facing (shipped)": combine_looks,
+        SHIPPED_RULE: combine_looks,
         "the whole car's axis × the near end's facing": lambda p, q: combine_looks(p + np.roll(p, len(p) // 2), q),
     }
+
+
+def look_cases(ends: dict, plain: dict) -> list[tuple[str, dict, object]]:
+    """(label, second looks, rule) of every row ``--looks`` prints: each rule on the mirror
+    averaged second looks ``ends``, then the shipped rule on the ``plain`` ones."""
+    rules = _look_rules()
+    return ([(name, ends, rule) for name, rule in rules.items()]
+            + [("shipped, the second look without mirror averaging", plain, rules[SHIPPED_RULE])])
 
 
 def two_looks(pictures: list, boxes: list, weights: str | None) -> tuple[np.ndarray, dict, dict]:
@@ -548,7 +561,6 @@ def main_looks(args) -> int:
 
     torch.set_num_threads(1)
     _, meta = load_classifier(args.weights)
-    rules = _look_rules()
     root = Path(args.photos) if args.photos else REAL_PHOTOS
     print(f"weights {args.weights or 'shipped'}; the second look with mirror averaging unless said"
           + ("" if meta.get(END_LOOK_KEY) else "; these weights never learnt the second look (carbody takes "
@@ -562,9 +574,7 @@ def main_looks(args) -> int:
         for label, boxes in (("car's box", [p["parts_box"] for p in photos]),
                              ("marks' box", [keypoint_box(p["marks"]) for p in photos])):
             p, ends, plain = two_looks([ph["image"] for ph in photos], boxes, args.weights)
-            cases = [(name, ends, rule) for name, rule in rules.items()]
-            cases.append(("shipped, the second look without mirror averaging", plain, rules[list(rules)[1]]))
-            for name, looks, rule in cases:
+            for name, looks, rule in look_cases(ends, plain):
                 s = real_scores(np.array([continuous_estimate(q) for q in voted(p, looks, rule)]), truth)
                 print(f"| {label} | {name} | {s['within15']:.2f} | {s['within30']:.2f} | {s['front_rear']:.2f} | "
                       f"{s['left_right']:.2f} |")
@@ -580,9 +590,7 @@ def main_looks(args) -> int:
     print(f"\nphoto-like renders of the held-out cars: {len(rows)} from {test_dir}, {len(ends)} given a second look")
     print("| rule | top-1 | within ±15° | front/rear (≥ 150° off) | ECE of the top class |")
     print("|---|---|---|---|---|")
-    cases = [(name, ends, rule) for name, rule in rules.items()]
-    cases.append(("shipped, the second look without mirror averaging", plain, rules[list(rules)[1]]))
-    for name, looks, rule in cases:
+    for name, looks, rule in look_cases(ends, plain):
         q = voted(p, looks, rule)
         s = scores(rows, q)
         print(f"| {name} | {s['top1']:.3f} | {s['within15']:.3f} | {s['front_rear_confusions']:.3f} | "
