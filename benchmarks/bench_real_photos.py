@@ -41,6 +41,10 @@ Definitions (per photo):
   the wheel centres), width 2 · max |x| of the sampled curves (both halves; door mirrors are not
   modelled), against ``published_mm``: signed % (+ = fitted too large); blank where the figure
   is not published. A fit whose "left" half lies at x ≤ 0 is flagged ``mirrored_half``.
+  The height stands on the ground: the top of the sampled curves above the wheel centres plus
+  a tyre's radius, 0.12 wheelbase (:data:`carbody.fit.size.TYRE_RADIUS_NORM`, as the size's
+  proportions take it). The summary gives the height ÷ width error apart for views within
+  :data:`END_ON_DEG` of an end: such a view mixes the car's height with its depth.
   Beside the wheelbase, the spread the report gives it when its proportions sized it
   (``report["fit"]["size"]["spread_pct"]``, of its logarithm); the summary counts the published
   wheelbases within one and two of it.
@@ -167,6 +171,8 @@ VIEW_OK_DEG = 15.0
 THREE_QUARTER_DEG = (15.0, 75.0)
 #: A lean counted as one (degrees): half the estimates' ±10°.
 LEAN_NOTED_DEG = 5.0
+#: A view found within this of the car's nearer end is end-on for the height's row (degrees).
+END_ON_DEG = 15.0
 
 #: The rims' view (:func:`rims_view`): each rear wheel is read from these starts, degrees from
 #: the view found; a wheel whose readings agree within RIM_AGREE_DEG gives their mean.
@@ -552,6 +558,14 @@ def fitted_width_mm(control_points: np.ndarray, samples: int = 200) -> float:
     return float(2.0 * np.abs(sample_curves(control_points, samples)[..., 0]).max())
 
 
+def fitted_height_mm(sizes: dict[str, float]) -> float:
+    """The body's height on the ground (mm) from ``Wireframe.measure()``'s ``sizes``: its top above
+    the wheel centres and a tyre's radius, as :func:`carbody.fit.size.estimate_size` takes it."""
+    from carbody.fit.size import NORMALISED_WHEELBASE, TYRE_RADIUS_NORM
+
+    return float(sizes["top_z_mm"] + TYRE_RADIUS_NORM / NORMALISED_WHEELBASE * sizes["wheelbase_mm"])
+
+
 def arches_per_wheelbase(control_points: np.ndarray) -> list[float]:
     """[front, rear]: each wheel arch's radius (its top above the hub) over the wheelbase
     (:func:`carbody.fit.wheels.arch_radii`, the left wheels)."""
@@ -601,6 +615,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
            "view_found_deg": None, "view_diff_deg": None, "view_lean_deg": None, "view_source": None,
            "residual_px_mean": None,
            "residual_pct": None, "fitted_mm": None, "length_err_pct": None, "width_err_pct": None,
+           "height_err_pct": None,
            "wheelbase_err_pct": None, "wheelbase_spread_pct": None,
            "iou": {r: None for r, _ in REGION_PARTS}, "wheel_dist_pct": None,
            "hood": None, "wheel_dist_px": None, "wheel_dv_pct": None, "centroid_to_hub_pct": None, "hubs_found": None,
@@ -618,7 +633,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
     row.update(view_found_deg=found, view_source=report["view"]["source"],
                residual_px_mean=fit["residual_px_mean"], residual_pct=100.0 * fit["residual_px_mean"] / size,
                fitted_mm={"length": sizes["length_mm"], "width": fitted_width_mm(cp),
-                          "wheelbase": sizes["wheelbase_mm"]},
+                          "height": fitted_height_mm(sizes), "wheelbase": sizes["wheelbase_mm"]},
                mirrored_half=bool(cp[:, 0].max() < MIRRORED_MM < -cp[:, 0].min()),
                fallback=report["fit_fallback"],
                camera_check_px=camera_check_px(report, photo.meta["keypoints"]),
@@ -627,7 +642,7 @@ def measure(photo: Photo, run: dict, out: Path) -> dict:
     if row["view_estimate_deg"] is not None:
         row["view_diff_deg"] = float(angular_difference(found, row["view_estimate_deg"]))
         row["view_lean_deg"] = view_lean_deg(found, row["view_estimate_deg"])
-    for key in ("length", "width", "wheelbase"):
+    for key in ("length", "width", "height", "wheelbase"):
         row[f"{key}_err_pct"] = pct_error(row["fitted_mm"][key], published.get(key))
     if fit["wheelbase_from"] == "proportions" and fit.get("size"):
         row["wheelbase_spread_pct"] = fit["size"]["spread_pct"]
@@ -889,7 +904,7 @@ def fmt(v, spec: str = ".0f", signed: bool = False) -> str:
 
 def photo_table(rows: list[dict]) -> str:
     head = ("| photo | outcome | time s (CPU) | view found / estimate (Δ) ° | rims ° | residual % | length % | width % | "
-            "wheelbase % | IoU windshield | IoU rear window | IoU hood | wheel centres % (n) | like for like % | fallback |")
+            "height % | wheelbase % | IoU windshield | IoU rear window | IoU hood | wheel centres % (n) | like for like % | fallback |")
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
     for r in rows:
         view = (f"{r['view_found_deg']:.0f} / {r['view_estimate_deg']} ({r['view_diff_deg']:.0f})"
@@ -899,7 +914,8 @@ def photo_table(rows: list[dict]) -> str:
         lines.append(f"| {r['photo'].removeprefix('cps_')} | {r['outcome']} | "
                      f"{r['seconds']:.0f} ({fmt(r['cpu_seconds'])}) | {view} | {fmt(r.get('rims_view_deg'))} | "
                      f"{fmt(r['residual_pct'], '.1f')} | {fmt(r['length_err_pct'], signed=True)} | "
-                     f"{fmt(r['width_err_pct'], signed=True)} | {fmt(r['wheelbase_err_pct'], signed=True)} | "
+                     f"{fmt(r['width_err_pct'], signed=True)} | {fmt(r.get('height_err_pct'), signed=True)} | "
+                     f"{fmt(r['wheelbase_err_pct'], signed=True)} | "
                      + " | ".join(fmt(r["iou"][k], ".2f") for k, _ in REGION_PARTS)
                      + f" | {wheel} | {fmt(r['tyre_dist_pct'], '.1f')} | {fb} |")
     return "\n".join(lines)
@@ -962,6 +978,11 @@ def summarise(rows: list[dict]) -> dict:
     # how often the published wheelbase lies within the spread the report gives (of its logarithm)
     spread = [(abs(math.log1p(r["wheelbase_err_pct"] / 100)), r["wheelbase_spread_pct"] / 100) for r in rows
               if r["wheelbase_err_pct"] is not None and r["wheelbase_spread_pct"] is not None]
+    # the height against the width, signed: the shape's own, apart for views near an end
+    tall = {end_on: [100.0 * ((1 + r["height_err_pct"] / 100) / (1 + r["width_err_pct"] / 100) - 1) for r in rows
+                     if r.get("height_err_pct") is not None and r["width_err_pct"] is not None
+                     and (end_angle_deg(r["view_found_deg"]) <= END_ON_DEG) == end_on]
+            for end_on in (True, False)}
     times = [r["seconds"] for r in rows]
     arches = [r["arches_per_wheelbase"] for r in rows if r.get("arches_per_wheelbase")]
     low, high = library_arch_range()
@@ -976,6 +997,9 @@ def summarise(rows: list[dict]) -> dict:
         "median_abs_length_err_pct": _median_abs(rows, "length_err_pct"),
         "median_abs_width_err_pct": _median_abs(rows, "width_err_pct"),
         "median_abs_wheelbase_err_pct": _median_abs(rows, "wheelbase_err_pct"),
+        "median_abs_height_err_pct": _median_abs(rows, "height_err_pct"),
+        "height_measured": sum(r.get("height_err_pct") is not None for r in rows),
+        **{f"{k}_height_over_width_err_pct": sorted(v) for k, v in (("end_on", tall[True]), ("other", tall[False]))},
         "size_split_measured": len(sized),
         "median_abs_length_over_wheelbase_err_pct": median_or_none(abs(p) for p in proportion),
         "median_signed_wheelbase_err_pct": median_or_none(r["wheelbase_err_pct"] for r in sized),
@@ -1131,6 +1155,14 @@ def summary_table(s: dict) -> str:
              f"| of them (the {s['size_split_measured']} with both published): median \\|length ÷ wheelbase\\| "
              f"error / median signed wheelbase error | {fmt(s['median_abs_length_over_wheelbase_err_pct'], '.1f')} / "
              f"{fmt(s['median_signed_wheelbase_err_pct'], '.1f', signed=True)} % |",
+             f"| median \\|height\\| error (of {s['height_measured']}) | {fmt(s['median_abs_height_err_pct'], '.1f')} % |",
+             f"| height ÷ width error, signed (−: the fitted car too low), views within {END_ON_DEG:.0f}° of an end: "
+             f"each / the other views: median and range | "
+             + (", ".join(fmt(v, "+.0f") for v in s["end_on_height_over_width_err_pct"]) or "–") + " % / "
+             + (f"{fmt(median_or_none(s['other_height_over_width_err_pct']), '+.1f')} % "
+                f"({fmt(min(s['other_height_over_width_err_pct']), '+.0f')} … "
+                f"{fmt(max(s['other_height_over_width_err_pct']), '+.0f')}, of {len(s['other_height_over_width_err_pct'])})"
+                if s["other_height_over_width_err_pct"] else "–") + " |",
              f"| median signed width ÷ wheelbase error (−: the fitted car too narrow) | "
              f"{fmt(s['median_signed_width_over_wheelbase_err_pct'], '.1f', signed=True)} % |",
              f"| the wheelbase's spread the report gives (median), and the published wheelbase within one / two "

@@ -125,6 +125,13 @@ def test_a_hood_drawn_forward_of_ours_reads_as_ours_lying_back(bench, templates,
     assert bench.hood_offset(bench.Photo("no_hood", tmp_path / "x.jpg", tmp_path / "x.json", {}, {}), camera, cp) is None
 
 
+def test_a_template_stands_as_high_as_it_was_built(bench, templates):
+    """The height on the ground the benchmark reads (a tyre's radius of 0.12 wheelbase under the
+    wheel centres) is each template's own within 4 %: its tyres are 0.11–0.14 wheelbase."""
+    for row, wireframe in templates:
+        assert bench.fitted_height_mm(wireframe.measure()) == pytest.approx(row["height_mm"], rel=0.04), row["name"]
+
+
 def test_the_nearer_triangle_owns_the_pixel_whichever_is_listed_first(bench):
     camera = {"azimuth_deg": 90.0, "elevation_deg": 0.0, "roll_deg": 0.0, "distance_mm": 5000.0,
               "aim_mm": [0.0, 0.0, 0.0], "scale_px_per_mm": 0.1, "offset_px": [100.0, 100.0], "to_photo": None}
@@ -223,7 +230,7 @@ def test_metrics_are_finite_where_defined(bench_run):
             assert r["view_found_deg"] is None and all(v is None for v in r["iou"].values())
             continue
         assert 0 <= r["view_diff_deg"] <= 180 and math.isfinite(r["residual_pct"])
-        for key in ("length", "width", "wheelbase"):
+        for key in ("length", "width", "height", "wheelbase"):
             assert (r[f"{key}_err_pct"] is None) == (key not in r["published_mm"])
             assert r[f"{key}_err_pct"] is None or math.isfinite(r[f"{key}_err_pct"])
         # no wheelbase told: the report's spread of the one the proportions gave, a few per cent
