@@ -509,17 +509,17 @@ def two_looks(pictures: list, boxes: list, weights: str | None) -> tuple[np.ndar
     """The whole car's (B, 24) probabilities, and per picture the second look takes (a boxed
     three-quarter view, :func:`carbody.view.ends.is_three_quarter` of the first look's view) its
     near end's probabilities with mirror averaging (as shipped) and without: two {index: (24,)}."""
-    from carbody.view.ends import end_look, is_three_quarter
-    from carbody.view.labels import continuous_estimate
+    from carbody.view.ends import end_look, second_look_view
     from carbody.view.predict import predict_probabilities, read_image
 
     pics = [read_image(p) for p in pictures]
     p = np.concatenate([predict_probabilities(pics[i:i + 64], weights, boxes=boxes[i:i + 64], end_looks=False)
                         for i in range(0, len(pics), 64)])
-    second = [i for i, b in enumerate(boxes) if b is not None and is_three_quarter(continuous_estimate(p[i]))]
+    views = [second_look_view(b, q) for b, q in zip(boxes, p)]
+    second = [i for i, v in enumerate(views) if v is not None]
     looks = {}
     for mirror in (True, False):
-        q = [predict_probabilities([end_look(pics[i], boxes[i], continuous_estimate(p[i])) for i in second[k:k + 64]],
+        q = [predict_probabilities([end_look(pics[i], boxes[i], views[i]) for i in second[k:k + 64]],
                                    weights, mirror_average=mirror, boxes=[boxes[i] for i in second[k:k + 64]],
                                    end_looks=False) for k in range(0, len(second), 64)]
         q = np.concatenate(q) if q else np.zeros((0, p.shape[1]))

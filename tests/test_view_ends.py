@@ -10,7 +10,7 @@ import torch
 
 from carbody.errors import ViewError
 from carbody.view.ends import (END_GREY, END_LOOK_KEY, combine_looks, end_look, is_three_quarter,
-                               near_end_on_left, write_end_looks)
+                               near_end_on_left, second_look_view, write_end_looks)
 from carbody.view.labels import CLASS_ANGLES_DEG, class_of, continuous_estimate
 from carbody.view.predict import SHIPPED_WEIGHTS, crop_to_box, predict_probabilities
 from carbody.view.train import to_square_input
@@ -23,6 +23,18 @@ def test_three_quarter_views_and_their_near_end():
     # front-left (30°) and rear-right (210°) show the near end on the picture's left
     assert near_end_on_left(30) and near_end_on_left(210)
     assert not near_end_on_left(150) and not near_end_on_left(330)
+
+
+def test_a_second_look_needs_a_box_and_a_three_quarter_first_look():
+    def peaked(deg):
+        p = np.full(len(CLASS_ANGLES_DEG), 1e-4)
+        p[class_of(deg)] = 1.0
+        return p / p.sum()
+
+    box = (0, 0, 10, 10)
+    assert abs(second_look_view(box, peaked(45)) - 45) < 1
+    assert second_look_view(None, peaked(45)) is None
+    assert second_look_view(box, peaked(0)) is None and second_look_view(box, peaked(90)) is None
 
 
 def test_the_end_look_keeps_the_near_end_and_paints_the_rest_grey():

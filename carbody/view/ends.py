@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from carbody.errors import ViewError
-from carbody.view.labels import CLASS_ANGLES_DEG, angular_difference
+from carbody.view.labels import CLASS_ANGLES_DEG, angular_difference, continuous_estimate
 
 #: A view is three-quarter when its axis lies at least this far from end-on and from side-on:
 #: nearer an end the whole car is its end already; nearer the side both ends show alike.
@@ -49,6 +49,16 @@ def is_three_quarter(view_deg: float, margin_deg: float = THREE_QUARTER_MARGIN_D
     """Whether the view (degrees) lies at least ``margin_deg`` from end-on and from side-on."""
     axis = float(view_deg) % 180.0
     return min(axis, 180.0 - axis) >= margin_deg and abs(axis - 90.0) >= margin_deg
+
+
+def second_look_view(box, probs: np.ndarray) -> float | None:
+    """The view (degrees) a picture's second look is taken at: the first look's, read from its
+    class probabilities ``probs``, when the picture has a ``box`` and that view is three-quarter
+    on; else None (no second look)."""
+    if box is None:
+        return None
+    view = continuous_estimate(probs)
+    return view if is_three_quarter(view) else None
 
 
 def near_end_on_left(view_deg: float) -> bool:

@@ -331,8 +331,7 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
             alone, which settles which way the car faces (:mod:`carbody.view.ends`), when the
             weights were trained on such looks.
     """
-    from carbody.view.ends import END_LOOK_KEY, combine_looks, end_look, is_three_quarter
-    from carbody.view.labels import continuous_estimate
+    from carbody.view.ends import END_LOOK_KEY, combine_looks, end_look, second_look_view
     from carbody.view.onnx_net import onnx_weights_for, probabilities
     from carbody.view.train import INPUT_SIZE, to_square_input
 
@@ -354,8 +353,8 @@ def predict_probabilities(images: list | np.ndarray, weights: str | Path | None 
     size = int(meta.get("input_size", INPUT_SIZE))
     p = run(np.stack([to_square_input(pic if b is None else crop_to_box(pic, b), size) for pic, b in zip(pics, boxes)]))
     if end_looks and meta.get(END_LOOK_KEY):
-        views = [continuous_estimate(q) for q in p]
-        second = [i for i, b in enumerate(boxes) if b is not None and is_three_quarter(views[i])]
+        views = [second_look_view(b, q) for b, q in zip(boxes, p)]
+        second = [i for i, v in enumerate(views) if v is not None]
         if second:
             ends = run(np.stack([to_square_input(crop_to_box(end_look(pics[i], boxes[i], views[i]), boxes[i]), size)
                                  for i in second]))
