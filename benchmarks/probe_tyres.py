@@ -161,8 +161,9 @@ def _render(out: Path, images_per_body: int, max_bodies: int | None, plain_wheel
     return count
 
 
-def network():
-    """The U-Net (module docstring, step 2): (n, 3, s, s) normalised RGB → (n, 1, s, s) logits."""
+def network(channels: tuple[int, ...] = CHANNELS, outputs: int = 1, inputs: int = 3):
+    """The U-Net (module docstring, step 2): (n, ``inputs``, s, s) (normalised RGB) → (n,
+    ``outputs``, s, s) logits, one scale per entry of ``channels``."""
     import torch
     from torch import nn
     from torch.nn import functional as F
@@ -172,12 +173,12 @@ def network():
                              nn.Conv2d(o, o, 3, padding=1, bias=False), nn.BatchNorm2d(o), nn.ReLU(inplace=True))
 
     class UNet(nn.Module):
-        def __init__(self, c=CHANNELS):
+        def __init__(self, c=channels):
             super().__init__()
-            self.down = nn.ModuleList([block(3, c[0]), block(c[0], c[1]), block(c[1], c[2]), block(c[2], c[3])])
-            self.context = nn.Sequential(nn.Conv2d(c[3], c[3], 3, padding=2, dilation=2), nn.ReLU(inplace=True))
-            self.up = nn.ModuleList([block(c[3] + c[2], c[2]), block(c[2] + c[1], c[1]), block(c[1] + c[0], c[0])])
-            self.head = nn.Conv2d(c[0], 1, 1)
+            self.down = nn.ModuleList([block(i, o) for i, o in zip((inputs, *c[:-1]), c)])
+            self.context = nn.Sequential(nn.Conv2d(c[-1], c[-1], 3, padding=2, dilation=2), nn.ReLU(inplace=True))
+            self.up = nn.ModuleList([block(c[k + 1] + c[k], c[k]) for k in reversed(range(len(c) - 1))])
+            self.head = nn.Conv2d(c[0], outputs, 1)
 
         def forward(self, x):
             skips = []
@@ -194,17 +195,19 @@ def network():
     return UNet()
 
 
-def square_crop(image: np.ndarray, box, margin: float, shift=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+def square_crop(image: np.ndarray, box, margin: float, shift=(0.0, 0.0),
+                side: int = INPUT_PX) -> tuple[np.ndarray, np.ndarray]:
     """(the square round ``box`` (x0, y0, x1, y1) px, ``margin`` of its longer side added and its
-    centre moved by ``shift`` of the box, scaled to INPUT_PX; the (2, 3) affine map photo → crop)."""
+    centre moved by ``shift`` of the box, scaled to ``side`` px; the (2, 3) affine map photo →
+    crop)."""
     import cv2
 
     x0, y0, x1, y1 = box
     cx, cy = (x0 + x1) / 2 + shift[0] * (x1 - x0), (y0 + y1) / 2 + shift[1] * (y1 - y0)
-    s = INPUT_PX / (max(x1 - x0, y1 - y0) * (1 + margin))
-    M = np.array([[s, 0, INPUT_PX / 2 - s * cx], [0, s, INPUT_PX / 2 - s * cy]], np.float32)
+    s = side / (max(x1 - x0, y1 - y0) * (1 + margin))
+    M = np.array([[s, 0, side / 2 - s * cx], [0, s, side / 2 - s * cy]], np.float32)
     flags = cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR
-    return cv2.warpAffine(image, M, (INPUT_PX, INPUT_PX), flags=flags, borderMode=cv2.BORDER_REPLICATE), M
+    return cv2.warpAffine(image, M, (side, side), flags=flags, borderMode=cv2.BORDER_REPLICATE), M
 
 
 def as_input(rgb: np.ndarray):
