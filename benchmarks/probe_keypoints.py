@@ -26,7 +26,7 @@ can come from a keypoint detector trained on renders alone:
    people's clicks lie about 1–1.5 % apart: a detection within 1 % is as good as a click.
 
     python benchmarks/probe_keypoints.py --workdir W [--images-per-body 20] [--epochs 14] \
-        [--threads 2] [--seed 0] [--json FILE]
+        [--threads 2] [--seed 0] [--held-out N] [--flip] [--json FILE]
 
 Each step is skipped when its output is already in the work folder. Nothing here is shipped, and
 no real photo is used in training.
@@ -264,23 +264,29 @@ def peaks(maps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([cols + du + 0.5, rows + dv + 0.5], axis=1), height
 
 
-def detect(net, rgb: np.ndarray, box) -> tuple[np.ndarray, np.ndarray]:
+def detect(net, rgb: np.ndarray, box, flip: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """((62, 2) photo px, (62,) peak height) of every keypoint name in a photo, reading the square
-    round ``box`` (margin :data:`probe_tyres.MARGIN`)."""
+    round ``box`` (margin :data:`probe_tyres.MARGIN`); with ``flip`` each heat map is averaged
+    with its twin's read in the mirrored crop."""
     import torch
 
     crop, M = tyres.square_crop(rgb, box, tyres.MARGIN, side=INPUT_PX)
     with torch.no_grad():
-        maps = torch.sigmoid(net(tyres.as_input(crop)[None]))[0].numpy()
-    uv, height = peaks(maps)
+        x = tyres.as_input(crop)[None]
+        maps = torch.sigmoid(net(x))[0].numpy()
+        if flip:
+            names = keypoint_names()
+            mirrored = torch.sigmoid(net(torch.flip(x, [3])))[0].numpy()[:, :, ::-1]
+            maps = (maps + mirrored[[names.index(twin(n, names)) for n in names]]) / 2
+    uv, height = peaks(np.ascontiguousarray(maps))
     uv *= INPUT_PX / MAP_PX
     A, t = M[:, :2].astype(float), M[:, 2].astype(float)
     return (uv - t) @ np.linalg.inv(A).T, height
 
 
-def measure(net, data: Path) -> list[dict]:
+def measure(net, data: Path, flip: bool = False) -> list[dict]:
     """One row per real photo (module docstring, step 3): per hand mark its distance from the
-    detection, % of S, and the peak's height."""
+    detection (:func:`detect`, ``flip`` passed on), % of S, and the peak's height."""
     import cv2
 
     names = keypoint_names()
@@ -288,7 +294,7 @@ def measure(net, data: Path) -> list[dict]:
     for photo in real.load_photos(data):
         rgb = cv2.imread(str(photo.image))[..., ::-1].copy()
         size, _ = real.car_image_size(photo)
-        uv, height = detect(net, rgb, tyres.marks_box(photo))
+        uv, height = detect(net, rgb, tyres.marks_box(photo), flip)
         marks = {n: p for n, p in photo.meta["keypoints"].items() if n in names}
         per_mark = {n: (100.0 * float(np.linalg.norm(uv[names.index(n)] - np.asarray(p, float))) / size,
                         float(height[names.index(n)])) for n, p in marks.items()}
@@ -330,6 +336,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="the training's seed (the renders' is fixed)")
     parser.add_argument("--held-out", type=int, default=0, metavar="N",
                         help="also measure on N renders of other bodies and shots (WORKDIR/held_out)")
+    parser.add_argument("--flip", action="store_true",
+                        help="average each real photo's heat maps with its mirror's (names swapped)")
     parser.add_argument("--json", type=Path, help="also write the rows and summary here")
     args = parser.parse_args(argv)
     import torch
@@ -356,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.data / "keypoints").is_dir():
         print(f"no real photos at {args.data}: nothing to measure")
         return 0
-    rows = measure(net, args.data)
+    rows = measure(net, args.data, args.flip)
     print("\n| photo | hand marks | median distance, % of S | " + " | ".join(f"within {w:g} %" for w in WITHIN_PCT)
           + " |\n|---|---|---|" + "---|" * len(WITHIN_PCT))
     for r in rows:
