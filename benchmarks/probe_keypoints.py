@@ -81,42 +81,18 @@ def render(out: Path, images_per_body: int, max_bodies: int | None = None, seed:
     """Photo-like renders and their keypoints into ``out`` (module docstring, step 1), of the
     first ``max_bodies`` bodies (None: all), drawn from ``seed`` (another: other expansions,
     blends and shots): the count."""
-    import carbody.view.dataset as dataset
-
-    size, dataset.IMAGE_SIZE = dataset.IMAGE_SIZE, tyres.RENDER_PX  # the backdrop is drawn at it
-    try:
-        return _render(out, images_per_body, max_bodies, seed)
-    finally:
-        dataset.IMAGE_SIZE = size
-
-
-def _render(out: Path, images_per_body: int, max_bodies: int | None, seed: int) -> int:
     import cv2
 
     import carbody.view.dataset as dataset
     from carbody.camera import View
     from carbody.fit.visibility import keypoint_slots, visible_keypoints
-    from carbody.library import load_library
-    from carbody.render import Scene
-    from carbody.templates import load_templates
     from carbody.topology import load_topology
-    from carbody.view.photo import PhotoLook
 
-    library, rows = load_library(), [row for row, _ in load_templates()]
-    bodies = dataset.choose_bodies(library, rows, 2, seed)
-    bodies += dataset.blend_bodies(library, rows, sorted({b.template for b in bodies}), 30, seed)
-    bodies = bodies[:max_bodies]
-    vary = dataset.Variation(photo=PhotoLook(), photo_fraction=1.0)
     slots = keypoint_slots(load_topology())
     names = list(slots)
     out.mkdir(parents=True, exist_ok=True)
     count = 0
-    for b, spec in enumerate(bodies):
-        meshes, _ = dataset.surfaced_meshes(spec, vary=vary, seed=b)
-        if meshes is None:
-            continue
-        meshes = tyres.varied_rims(meshes, np.random.default_rng([seed, 5, b]))
-        scene = Scene(meshes, size=(tyres.RENDER_PX, tyres.RENDER_PX), antialias=2)
+    for b, spec, _, scene, vary in tyres.photo_scenes(max_bodies, seed=seed):
         cp = np.asarray(spec.control_points_mm, float)
         points = np.array([cp[s.point_index] * s.sign for s in slots.values()])
         lo, hi = scene.bounds

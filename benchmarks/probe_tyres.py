@@ -107,41 +107,46 @@ def varied_rims(meshes: list, rng: np.random.Generator) -> list:
     return out
 
 
-def render(out: Path, images_per_body: int, max_bodies: int | None = None, plain_wheels: bool = False) -> int:
-    """Photo-like renders and their wheel masks into ``out`` (module docstring, step 1), of the
-    first ``max_bodies`` bodies (None: all), the rims varied unless ``plain_wheels``: the count."""
-    import carbody.view.dataset as dataset
-
-    size, dataset.IMAGE_SIZE = dataset.IMAGE_SIZE, RENDER_PX  # the backdrop and ground are drawn at it
-    try:
-        return _render(out, images_per_body, max_bodies, plain_wheels)
-    finally:
-        dataset.IMAGE_SIZE = size  # the data set's own renders keep theirs
-
-
-def _render(out: Path, images_per_body: int, max_bodies: int | None, plain_wheels: bool) -> int:
-    import cv2
-
+def photo_scenes(max_bodies: int | None = None, plain_wheels: bool = False, seed: int = SEED):
+    """(body index, :class:`~carbody.view.dataset.BodySpec`, meshes, scene, the photo look's
+    variation) of each body that surfaces (module docstring, step 1): the library's templates, one
+    expansion of each and 30 blends drawn from ``seed``, the first ``max_bodies`` (None: all),
+    the rims varied unless ``plain_wheels``. While it runs the data set draws at
+    :data:`RENDER_PX`."""
     import carbody.view.dataset as dataset
     from carbody.library import load_library
-    from carbody.render import Look, Scene
+    from carbody.render import Scene
     from carbody.templates import load_templates
     from carbody.view.photo import PhotoLook
 
     library, rows = load_library(), [row for row, _ in load_templates()]
-    bodies = dataset.choose_bodies(library, rows, 2, SEED)
-    bodies += dataset.blend_bodies(library, rows, sorted({b.template for b in bodies}), 30, SEED)
-    bodies = bodies[:max_bodies]
+    bodies = dataset.choose_bodies(library, rows, 2, seed)
+    bodies += dataset.blend_bodies(library, rows, sorted({b.template for b in bodies}), 30, seed)
     vary = dataset.Variation(photo=PhotoLook(), photo_fraction=1.0)
+    size, dataset.IMAGE_SIZE = dataset.IMAGE_SIZE, RENDER_PX  # the backdrop and ground are drawn at it
+    try:
+        for b, spec in enumerate(bodies[:max_bodies]):
+            meshes, _ = dataset.surfaced_meshes(spec, vary=vary, seed=b)
+            if meshes is None:
+                continue
+            if not plain_wheels:
+                meshes = varied_rims(meshes, np.random.default_rng([seed, 5, b]))
+            yield b, spec, meshes, Scene(meshes, size=(RENDER_PX, RENDER_PX), antialias=2), vary
+    finally:
+        dataset.IMAGE_SIZE = size  # the data set's own renders keep theirs
+
+
+def render(out: Path, images_per_body: int, max_bodies: int | None = None, plain_wheels: bool = False) -> int:
+    """Photo-like renders and their wheel masks into ``out`` (module docstring, step 1), of the
+    first ``max_bodies`` bodies (None: all), the rims varied unless ``plain_wheels``: the count."""
+    import cv2
+
+    import carbody.view.dataset as dataset
+    from carbody.render import Look
+
     out.mkdir(parents=True, exist_ok=True)
     count = 0
-    for b, spec in enumerate(bodies):
-        meshes, _ = dataset.surfaced_meshes(spec, vary=vary, seed=b)
-        if meshes is None:
-            continue
-        if not plain_wheels:
-            meshes = varied_rims(meshes, np.random.default_rng([SEED, 5, b]))
-        scene = Scene(meshes, size=(RENDER_PX, RENDER_PX), antialias=2)
+    for b, spec, meshes, scene, vary in photo_scenes(max_bodies, plain_wheels):
         white = {name: (1.0, 1.0, 1.0) if name in WHEEL_PARTS else (0.0, 0.0, 0.0) for name in {m.name for m in meshes}}
         label = Look(paint=(0, 0, 0), glass=(0, 0, 0), colours=white, background=(0.0, 0.0, 0.0),
                      light_intensity=0.0, ambient=1.0, diffuse=0.0, specular=0.0)
