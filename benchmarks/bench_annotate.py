@@ -58,6 +58,12 @@ Definitions:
   the photo, so the wheels' hubs found there join the marks, as ``carbody reconstruct`` fits:
   does the photo's own evidence let fewer marks reach the hand fit? ``--with-outline`` gives
   every fit the car's outline in the photo as well (``reconstruct --outline``, wheels on too).
+- **A detector's key** (``--detector PCT ... [--detector-net W.pt]``): one key places every
+  hand-marked keypoint where a detector puts it, then the user drags the mark furthest off its
+  hand mark onto it while one is more than ``--accept`` off. The detectors: the hand marks moved
+  at random by PCT % of the car's length at the median, and ``benchmarks/probe_keypoints.py``'s
+  network (reading the hand marks' box taken lower, as a box dragged round the car would be,
+  and the photo mirrored too). "Same at" counts the key as one action.
 - **Facing** (``--facing``): on every real photo, the keypoints the full fit of its hand marks
   shows on the photo, by how squarely they face the camera
   (:func:`carbody.annotate.guide.facing_cosines`), and the share the annotator marked.
@@ -83,6 +89,7 @@ Definitions:
     python benchmarks/bench_annotate.py [--photos cps_te66 cps_te39 cps_car10] [--data DIR]
                                         [--draws 6] [--accept 0.01] [--brisk 20] [--json FILE]
                                         [--oracle [--with-wheels | --with-outline]] [--facing] [--no-guided] [--to-the-end]
+                                        [--detector PCT ... [--detector-net W.pt]]
                                         [--quick-vs-full [--every 3]]
                                         [--user asked|ghosts|ghosts-any [--notice F] [--seed N]]
 
@@ -421,6 +428,78 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
             "same": ref.same(d3, d2), "tau3_mm": ref.tau3, "tau2_px": ref.tau2}
 
 
+def detected(name: str, image: Path, marks_file: Path, args) -> list[dict]:
+    """How many actions a key that places every hand-marked keypoint where a detector puts it
+    would leave (module docstring, ``--detector``): one row per detector."""
+    from carbody.annotate.session import AnnotationSession
+    from carbody.fit import read_keypoints
+
+    hand = read_keypoints(marks_file).points
+    with tempfile.TemporaryDirectory() as tmp:
+        session = AnnotationSession(image, output=Path(tmp) / "marks.json", full_fits=False, warm_up=False)
+        session.wait_started(120)  # the classifier's prior, as the guided session has it
+        size, prior = session.image_size, session.prior
+        session.close()
+    ref = Reference(hand, size, prior, args.accept, args.draws)
+    accept_px = args.accept * ref.length_px
+    detectors = [(f"hand marks moved {e:g} % of the car's length (median)", e) for e in args.detector]
+    if args.detector_net:
+        detectors.append((f"the network {args.detector_net.name}", None))
+    rows = []
+    for label, error in detectors:
+        if error is None:
+            found = network_detections(args.detector_net, image, hand)
+        else:
+            found = moved_marks(hand, error / 100.0 * ref.length_px, np.random.default_rng([args.seed, len(hand)]))
+        steps = drags_to_the_hand_fit(found, hand, ref, accept_px)
+        within = np.mean([np.hypot(*np.subtract(found[n], hand[n])) <= accept_px for n in hand])
+        rows.append({"photo": name, "hand": len(hand), "detector": label, "within_click": float(within),
+                     "same_at": same_from(steps, "same"), "actions": len(steps), "steps": steps})
+        if args.verbose:
+            print(f"  detected {name} {label}: same at {rows[-1]['same_at']} of {len(hand)}", flush=True)
+    return rows
+
+
+def moved_marks(hand: dict, median_px: float, rng: np.random.Generator) -> dict:
+    """``hand`` {name: (u, v)} each moved at random, isotropically, ``median_px`` at the median (a
+    2D Gaussian's median radius is 1.1774 σ)."""
+    sigma = median_px / np.sqrt(2.0 * np.log(2.0))
+    return {n: tuple(np.add(uv, rng.normal(0.0, sigma, 2))) for n, uv in hand.items()}
+
+
+def drags_to_the_hand_fit(found: dict, hand: dict, ref, accept_px: float) -> list[dict]:
+    """The detector key's user (module docstring, ``--detector``): the marks ``found`` placed by one
+    key, then the one furthest off its hand mark dragged onto it while one is more than
+    ``accept_px`` off. One row per action: whether the full fit (``ref.fit_marks``) is then the
+    same as the hand fit (``ref.same`` of ``ref.distances``)."""
+    marks, steps = dict(found), []
+    while True:
+        d3, d2 = ref.distances(ref.fit_marks(marks))
+        steps.append({"action": 1 + len(steps), "same": ref.same(d3, d2), "d3_mm": d3, "d2_px": d2})
+        off = {n: float(np.hypot(*np.subtract(marks[n], hand[n]))) for n in marks}
+        worst = max(off, key=off.get)
+        if off[worst] <= accept_px:
+            return steps
+        marks[worst] = hand[worst]  # one drag onto the point
+
+
+def network_detections(weights: Path, image: Path, hand: dict) -> dict:
+    """{name: (u, v)}: where ``benchmarks/probe_keypoints.py``'s network with ``weights`` puts each
+    hand-marked keypoint, reading the hand marks' box (taken lower, as that probe does) and the
+    photo mirrored too."""
+    import cv2
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import probe_keypoints
+    import probe_tyres
+
+    rgb = cv2.imread(str(image))[..., ::-1].copy()
+    box = probe_tyres.points_box(list(hand.values()))
+    uv, _ = probe_keypoints.detect(probe_keypoints.trained_network(weights), rgb, box, flip=True)
+    names = probe_keypoints.keypoint_names()
+    return {n: tuple(uv[names.index(n)]) for n in hand}
+
+
 #: The quick policies ``--quick-vs-full`` compares: the page's, and the one before commit 5db2425.
 QUICK_POLICIES = ("the page's (three views ranked, the coarse noise kept)",
                   "before 5db2425 (six views ranked, the noise read again)")
@@ -543,6 +622,11 @@ def main(argv=None) -> int:
     parser.add_argument("--notice", type=float, default=0.0,
                         help="the 'ghosts-any' user picks among the ghosts at least this share as far off as "
                              "the furthest (0: any ghost off by more than a click)")
+    parser.add_argument("--detector", type=float, nargs="*", default=[], metavar="PCT",
+                        help="also a key placing every hand-marked keypoint as a detector would: the hand marks "
+                             "moved by PCT %% of the car's length at the median (each value given)")
+    parser.add_argument("--detector-net", type=Path, default=None, metavar="W.pt",
+                        help="... and as benchmarks/probe_keypoints.py's network with these weights places them")
     parser.add_argument("--to-the-end", action="store_true",
                         help="the simulated user goes on past the page's 'settled' until nothing is asked")
     args = parser.parse_args(argv)
@@ -566,6 +650,8 @@ def main(argv=None) -> int:
     brisk = brisk_latencies(args.brisk) if args.brisk and not args.no_guided else []
     if args.oracle:
         oracles = [oracle(name, image, marks, args) for name, image, marks in cases]
+    detections = [row for name, image, marks in cases for row in detected(name, image, marks, args)] \
+        if args.detector or args.detector_net else []
     if args.facing and args.data.is_dir():
         facing = facing_rates(args.data)
     quick_rows = []
@@ -604,6 +690,12 @@ def main(argv=None) -> int:
         for o in oracles:
             marks = f"{o['marks']} ({o['marks'] / o['hand']:.0%})" if o["same"] else f"not within {o['marks']}"
             print(f"| {o['photo']} | {o['hand']} | {marks} | {o['tau3_mm']:.0f} / {o['tau2_px']:.1f} |")
+    if detections:
+        print("\n| photo | hand marks | detector | its marks within a click | same fit at (actions: the key, then drags) |")
+        print("|---|---|---|---|---|")
+        for d in detections:
+            same = "never" if d["same_at"] is None else f"{d['same_at']} ({d['same_at'] / d['hand']:.0%})"
+            print(f"| {d['photo']} | {d['hand']} | {d['detector']} | {d['within_click']:.0%} | {same} |")
     if facing:
         print("\n| facing cosine | keypoints shown on the photo | share marked by the annotator |")
         print("|---|---|---|")
@@ -619,7 +711,8 @@ def main(argv=None) -> int:
     if not results:
         if args.json:
             args.json.write_text(json.dumps({"load_start": load, "load_end": load_end, "oracle": oracles,
-                                             "facing": facing, "quick_vs_full": quick_rows}, indent=1))
+                                             "detected": detections, "facing": facing,
+                                             "quick_vs_full": quick_rows}, indent=1))
         return 0
     paused = [ms for r in results for op, ms in r["latency_ms"] if op != "hide"]
     hides = [ms for r in results for op, ms in r["latency_ms"] if op == "hide"]
@@ -639,7 +732,8 @@ def main(argv=None) -> int:
               f"p90 {np.percentile(off, 90):.1f} px (n = {len(off)})")
     if args.json:
         args.json.write_text(json.dumps({"load_start": load, "load_end": load_end, "cases": results,
-                                         "brisk_latency_ms": brisk, "oracle": oracles, "facing": facing,
+                                         "brisk_latency_ms": brisk, "oracle": oracles, "detected": detections,
+                                         "facing": facing,
                                          "quick_vs_full": quick_rows}, indent=1))
     return 0
 

@@ -143,12 +143,19 @@ def heat_maps(points: dict[str, tuple[float, float]], names: list[str], side: in
     return maps
 
 
-def training_pair(image: np.ndarray, marks: dict, box, names: list[str], rng: np.random.Generator):
-    """(input (3, s, s), target (62, s, s)) of one render, randomly cropped, mirrored and spoilt."""
+def training_pair(image: np.ndarray, marks: dict, box, names: list[str], rng: np.random.Generator,
+                  strong: bool = False):
+    """(input (3, s, s), target (62, s, s)) of one render, randomly cropped, mirrored and spoilt;
+    ``strong``: also turned ±8° and scaled ±10 %, blurred more, partly covered, grey one time in
+    ten and saved as a JPEG of quality 30–90 (``--augment strong``)."""
     import cv2
     import torch
 
     crop, M = tyres.square_crop(image, box, rng.uniform(0.05, 0.35), rng.uniform(-0.06, 0.06, 2), side=INPUT_PX)
+    if strong:  # a turn and a scale about the crop's centre, applied to the photo's map too
+        R = cv2.getRotationMatrix2D((INPUT_PX / 2, INPUT_PX / 2), rng.uniform(-8, 8), rng.uniform(0.9, 1.1))
+        M = (np.vstack([R, [0, 0, 1]]) @ np.vstack([M, [0, 0, 1]]))[:2].astype(np.float32)
+        crop = cv2.warpAffine(image, M, (INPUT_PX, INPUT_PX), flags=cv2.INTER_AREA, borderMode=cv2.BORDER_REPLICATE)
     points = {n: tuple(M[:, :2] @ np.asarray(p, np.float32) + M[:, 2]) for n, p in marks.items()}
     if rng.random() < 0.5:
         crop = crop[:, ::-1]
@@ -156,9 +163,19 @@ def training_pair(image: np.ndarray, marks: dict, box, names: list[str], rng: np
     points = {n: (u * MAP_PX / INPUT_PX, v * MAP_PX / INPUT_PX) for n, (u, v) in points.items()}
     x = crop.astype(np.float32) * rng.uniform(0.7, 1.3) + rng.uniform(-25, 25)  # exposure
     x = x * rng.uniform(0.85, 1.15, 3)                                          # white balance
-    if rng.random() < 0.3:
-        x = cv2.GaussianBlur(x, (0, 0), rng.uniform(0.3, 1.0))
+    if rng.random() < (0.4 if strong else 0.3):
+        x = cv2.GaussianBlur(x, (0, 0), rng.uniform(0.3, 1.5 if strong else 1.0))
+    if strong:
+        for _ in range(rng.integers(0, 3)):  # something in front of the car: a pole, a bush, a person
+            w, h = (rng.uniform(0.05, 0.3, 2) * INPUT_PX).astype(int)
+            u, v = rng.integers(0, INPUT_PX - w), rng.integers(0, INPUT_PX - h)
+            x[v:v + h, u:u + w] = rng.uniform(0, 255, 3)
+        if rng.random() < 0.1:
+            x[:] = x.mean(axis=2, keepdims=True)
     x = np.clip(x + rng.normal(0, rng.uniform(0, 6), x.shape), 0, 255).astype(np.uint8)
+    if strong:
+        x = cv2.imdecode(cv2.imencode(".jpg", x, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(30, 91))])[1],
+                         cv2.IMREAD_UNCHANGED).reshape(x.shape)
     return tyres.as_input(x), torch.from_numpy(heat_maps(points, names, MAP_PX))
 
 
@@ -175,9 +192,9 @@ def focal_loss(logits, target):
     return (positive + negative) / peak.sum().clamp(min=1.0)
 
 
-def train(renders: Path, out: Path, epochs: int, seed: int = 0) -> list[float]:
-    """Train the U-Net on ``renders`` (module docstring, step 2), save it to ``out``: the mean loss
-    of each epoch."""
+def train(renders: Path, out: Path, epochs: int, seed: int = 0, strong: bool = False) -> list[float]:
+    """Train the U-Net on ``renders`` (module docstring, step 2; ``strong``: the stronger spoiling
+    of :func:`training_pair`), save it to ``out``: the mean loss of each epoch."""
     import cv2
     import torch
 
@@ -198,7 +215,7 @@ def train(renders: Path, out: Path, epochs: int, seed: int = 0) -> list[float]:
         order, total, start = rng.permutation(len(data)), 0.0, time.perf_counter()
         net.train()
         for k in range(steps):
-            xs, ys = zip(*[training_pair(*data[i], names, rng) for i in order[k * batch:(k + 1) * batch]])
+            xs, ys = zip(*[training_pair(*data[i], names, rng, strong) for i in order[k * batch:(k + 1) * batch]])
             loss = focal_loss(net(torch.stack(xs)), torch.stack(ys))
             optimiser.zero_grad()
             loss.backward()
@@ -312,6 +329,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="the training's seed (the renders' is fixed)")
     parser.add_argument("--held-out", type=int, default=0, metavar="N",
                         help="also measure on N renders of other bodies and shots (WORKDIR/held_out)")
+    parser.add_argument("--augment", choices=("plain", "strong"), default="plain",
+                        help="the training's spoiling: exposure, colour, blur and noise, or also turns, scales, "
+                             "cover, grey and JPEG ('strong')")
     parser.add_argument("--flip", action="store_true",
                         help="average each real photo's heat maps with its mirror's (names swapped)")
     parser.add_argument("--json", type=Path, help="also write the rows and summary here")
@@ -326,7 +346,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rendered {count} pictures in {time.perf_counter() - start:.0f} s", flush=True)
     if not weights.is_file():
         start = time.perf_counter()
-        train(renders, weights, args.epochs, args.seed)
+        train(renders, weights, args.epochs, args.seed, args.augment == "strong")
         print(f"trained in {time.perf_counter() - start:.0f} s", flush=True)
     net = trained_network(weights)
     held_out = None

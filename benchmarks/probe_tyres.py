@@ -276,11 +276,17 @@ def train(renders: Path, out: Path, epochs: int, seed: int = 0) -> list[float]:
     return losses
 
 
-def marks_box(photo: real.Photo) -> tuple[float, float, float, float]:
-    """The marks' box, taken :data:`BELOW_MARKS` of its height lower, photo px."""
-    pts = np.array(list(photo.meta["keypoints"].values()), float)
+def points_box(points) -> tuple[float, float, float, float]:
+    """The box of marks ``points`` [(u, v), ...], taken :data:`BELOW_MARKS` of its height lower,
+    photo px."""
+    pts = np.asarray(points, float).reshape(-1, 2)
     (x0, y0), (x1, y1) = pts.min(0), pts.max(0)
     return float(x0), float(y0), float(x1), float(y1 + BELOW_MARKS * (y1 - y0))
+
+
+def marks_box(photo: real.Photo) -> tuple[float, float, float, float]:
+    """The photo's marks' box, taken :data:`BELOW_MARKS` of its height lower, photo px."""
+    return points_box(list(photo.meta["keypoints"].values()))
 
 
 def wheels_found(net, rgb: np.ndarray, box, size: float) -> tuple[np.ndarray, np.ndarray]:

@@ -77,6 +77,33 @@ def test_the_ghosts_any_user_drags_one_of_the_ghosts_off_by_more_than_a_click():
     assert picks == {"c"}
 
 
+def test_a_detectors_marks_are_moved_as_far_as_asked_at_the_median():
+    hand = {f"k{i}": (100.0 + i, 200.0) for i in range(4000)}
+    moved = ba.moved_marks(hand, 10.0, np.random.default_rng(0))
+    assert np.median([np.hypot(*np.subtract(moved[n], hand[n])) for n in hand]) == pytest.approx(10.0, rel=0.05)
+
+
+def test_the_detector_keys_user_drags_the_mark_furthest_off_until_none_is_off():
+    class Fits:  # the "fit" is the marks themselves; the same when their mean distance is small
+        def fit_marks(self, marks):
+            return marks
+
+        def distances(self, marks):
+            d = float(np.mean([np.hypot(*np.subtract(marks[n], hand[n])) for n in hand]))
+            return d, d
+
+        def same(self, d3, d2):
+            return d3 <= 2.0
+
+    hand = {"a": (0.0, 0.0), "b": (100.0, 0.0), "c": (0.0, 100.0)}
+    found = {"a": (1.0, 0.0), "b": (100.0, 12.0), "c": (0.0, 106.0)}
+    steps = ba.drags_to_the_hand_fit(found, hand, Fits(), accept_px=5.0)
+    # the key (mean 6.3 px off), "b" dragged (2.3), "c" dragged (0.3); "a" is within a click
+    assert [s["action"] for s in steps] == [1, 2, 3]
+    assert [s["same"] for s in steps] == [False, False, True]
+    assert ba.same_from(steps, "same") == 3
+
+
 def test_quick_against_full_compares_both_quick_policies_on_the_same_full_fits(tmp_path):
     """--quick-vs-full on the example's first twelve marks: a row per quick policy, each fit at
     the same counts; the page's quick fit lands near the full fit, from the same view."""
