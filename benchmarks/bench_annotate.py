@@ -63,7 +63,11 @@ Definitions:
   hand mark onto it while one is more than ``--accept`` off. The detectors: the hand marks moved
   at random by PCT % of the car's length at the median, and ``benchmarks/probe_keypoints.py``'s
   network (reading the hand marks' box taken lower, as a box dragged round the car would be,
-  and the photo mirrored too). "Same at" counts the key as one action.
+  and the photo mirrored too). The network's key places every keypoint whose heat map peaks at
+  ``--detector-peak`` (0.3) or more: some the annotator left out, which the user removes when
+  they lie more than ``--accept`` off the hand fit's; a hand-marked keypoint it left out is a
+  ghost, dragged as the others. With ``--detector-hand-names`` it places the hand-marked
+  keypoints and no other, as the moved hand marks do. "Same at" counts the key as one action.
 - **Facing** (``--facing``): on every real photo, the keypoints the full fit of its hand marks
   shows on the photo, by how squarely they face the camera
   (:func:`carbody.annotate.guide.facing_cosines`), and the share the annotator marked.
@@ -218,6 +222,15 @@ class Reference:
         points = live_fit.keypoint_positions(fit)
         k2 = fit.project_points(np.array([points[n] for n in self.shown]))
         return k3, k2
+
+    def projected(self, fit) -> dict[str, np.ndarray]:
+        """{name: (2,) photo px} of every keypoint name on ``fit`` (the hand fit's when None)."""
+        from carbody.annotate import live_fit
+
+        fit = self.fit if fit is None else fit
+        points = live_fit.keypoint_positions(fit)
+        names = list(points)
+        return dict(zip(names, fit.project_points(np.array([points[n] for n in names]))))
 
     def distances(self, fit) -> tuple[float, float]:
         """(3D mm, photo px) mean keypoint distances of ``fit`` from the hand fit."""
@@ -444,16 +457,20 @@ def detected(name: str, image: Path, marks_file: Path, args) -> list[dict]:
     accept_px = args.accept * ref.length_px
     detectors = [(f"hand marks moved {e:g} % of the car's length (median)", e) for e in args.detector]
     if args.detector_net:
-        detectors.append((f"the network {args.detector_net.name}", None))
+        detectors.append((f"the network {args.detector_net.name}"
+                          + (", the hand-marked names" if args.detector_hand_names else
+                             f", peaks of {args.detector_peak:g} or more"), None))
     rows = []
     for label, error in detectors:
         if error is None:
-            found = network_detections(args.detector_net, image, hand)
+            found = network_detections(args.detector_net, image, hand,
+                                       None if args.detector_hand_names else args.detector_peak)
         else:
             found = moved_marks(hand, error / 100.0 * ref.length_px, np.random.default_rng([args.seed, len(hand)]))
         steps = drags_to_the_hand_fit(found, hand, ref, accept_px)
-        within = np.mean([np.hypot(*np.subtract(found[n], hand[n])) <= accept_px for n in hand])
+        within = np.mean([n in found and np.hypot(*np.subtract(found[n], hand[n])) <= accept_px for n in hand])
         rows.append({"photo": name, "hand": len(hand), "detector": label, "within_click": float(within),
+                     "placed": len(found), "placed_unmarked": len(set(found) - set(hand)),
                      "same_at": same_from(steps, "same"), "actions": len(steps), "steps": steps})
         if args.verbose:
             print(f"  detected {name} {label}: same at {rows[-1]['same_at']} of {len(hand)}", flush=True)
@@ -469,24 +486,35 @@ def moved_marks(hand: dict, median_px: float, rng: np.random.Generator) -> dict:
 
 def drags_to_the_hand_fit(found: dict, hand: dict, ref, accept_px: float) -> list[dict]:
     """The detector key's user (module docstring, ``--detector``): the marks ``found`` placed by one
-    key, then the one furthest off its hand mark dragged onto it while one is more than
-    ``accept_px`` off. One row per action: whether the full fit (``ref.fit_marks``) is then the
-    same as the hand fit (``ref.same`` of ``ref.distances``)."""
+    key; then, while one is more than ``accept_px`` off, the furthest off is put right: a mark
+    (or the ghost of a hand-marked keypoint the key left out) dragged onto its hand mark, or a
+    mark the hand marks lack removed when it lies off the hand fit's keypoint. One row per
+    action: whether the full fit (``ref.fit_marks``) is then the same as the hand fit
+    (``ref.same`` of ``ref.distances``)."""
     marks, steps = dict(found), []
+    hand_fit = ref.projected(None)
     while True:
-        d3, d2 = ref.distances(ref.fit_marks(marks))
+        fit = ref.fit_marks(marks)
+        d3, d2 = ref.distances(fit)
         steps.append({"action": 1 + len(steps), "same": ref.same(d3, d2), "d3_mm": d3, "d2_px": d2})
-        off = {n: float(np.hypot(*np.subtract(marks[n], hand[n]))) for n in marks}
+        ghosts = ref.projected(fit) if fit is not None else {}
+        off = {n: float(np.hypot(*np.subtract(marks[n] if n in marks else ghosts.get(n, (np.inf, np.inf)), uv)))
+               for n, uv in hand.items()}
+        off |= {n: float(np.hypot(*np.subtract(marks[n], hand_fit[n]))) for n in marks if n not in hand}
         worst = max(off, key=off.get)
         if off[worst] <= accept_px:
             return steps
-        marks[worst] = hand[worst]  # one drag onto the point
+        if worst in hand:
+            marks[worst] = hand[worst]  # one drag (or click) onto the point
+        else:
+            del marks[worst]            # one Backspace
 
 
-def network_detections(weights: Path, image: Path, hand: dict) -> dict:
-    """{name: (u, v)}: where ``benchmarks/probe_keypoints.py``'s network with ``weights`` puts each
-    hand-marked keypoint, reading the hand marks' box (taken lower, as that probe does) and the
-    photo mirrored too."""
+def network_detections(weights: Path, image: Path, hand: dict, peak: float | None) -> dict:
+    """{name: (u, v)}: every keypoint ``benchmarks/probe_keypoints.py``'s network with ``weights``
+    finds with a peak of at least ``peak`` (None: every hand-marked keypoint, however low its
+    peak), reading the hand marks' box (taken lower, as that probe does) and the photo mirrored
+    too."""
     import cv2
 
     sys.path.insert(0, str(REPO / "benchmarks"))
@@ -495,9 +523,9 @@ def network_detections(weights: Path, image: Path, hand: dict) -> dict:
 
     rgb = cv2.imread(str(image))[..., ::-1].copy()
     box = probe_tyres.points_box(list(hand.values()))
-    uv, _ = probe_keypoints.detect(probe_keypoints.trained_network(weights), rgb, box, flip=True)
-    names = probe_keypoints.keypoint_names()
-    return {n: tuple(uv[names.index(n)]) for n in hand}
+    uv, height = probe_keypoints.detect(probe_keypoints.trained_network(weights), rgb, box, flip=True)
+    return {n: tuple(uv[k]) for k, n in enumerate(probe_keypoints.keypoint_names())
+            if (n in hand if peak is None else height[k] >= peak)}
 
 
 #: The quick policies ``--quick-vs-full`` compares: the page's, and the one before commit 5db2425.
@@ -627,6 +655,11 @@ def main(argv=None) -> int:
                              "moved by PCT %% of the car's length at the median (each value given)")
     parser.add_argument("--detector-net", type=Path, default=None, metavar="W.pt",
                         help="... and as benchmarks/probe_keypoints.py's network with these weights places them")
+    parser.add_argument("--detector-peak", type=float, default=0.3,
+                        help="the network's key places the keypoints whose heat map peaks at least this high")
+    parser.add_argument("--detector-hand-names", action="store_true",
+                        help="the network's key places every hand-marked keypoint and no other, as if it knew "
+                             "what the annotator would mark")
     parser.add_argument("--to-the-end", action="store_true",
                         help="the simulated user goes on past the page's 'settled' until nothing is asked")
     args = parser.parse_args(argv)
@@ -691,11 +724,13 @@ def main(argv=None) -> int:
             marks = f"{o['marks']} ({o['marks'] / o['hand']:.0%})" if o["same"] else f"not within {o['marks']}"
             print(f"| {o['photo']} | {o['hand']} | {marks} | {o['tau3_mm']:.0f} / {o['tau2_px']:.1f} |")
     if detections:
-        print("\n| photo | hand marks | detector | its marks within a click | same fit at (actions: the key, then drags) |")
-        print("|---|---|---|---|---|")
+        print("\n| photo | hand marks | detector | marks placed (the hand marks lack) | hand marks placed within a click "
+              "| same fit at (actions: the key, then drags and removals) | actions in all |")
+        print("|---|---|---|---|---|---|---|")
         for d in detections:
             same = "never" if d["same_at"] is None else f"{d['same_at']} ({d['same_at'] / d['hand']:.0%})"
-            print(f"| {d['photo']} | {d['hand']} | {d['detector']} | {d['within_click']:.0%} | {same} |")
+            print(f"| {d['photo']} | {d['hand']} | {d['detector']} | {d['placed']} ({d['placed_unmarked']}) | "
+                  f"{d['within_click']:.0%} | {same} | {d['actions']} |")
     if facing:
         print("\n| facing cosine | keypoints shown on the photo | share marked by the annotator |")
         print("|---|---|---|")

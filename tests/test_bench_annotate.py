@@ -83,25 +83,32 @@ def test_a_detectors_marks_are_moved_as_far_as_asked_at_the_median():
     assert np.median([np.hypot(*np.subtract(moved[n], hand[n])) for n in hand]) == pytest.approx(10.0, rel=0.05)
 
 
-def test_the_detector_keys_user_drags_the_mark_furthest_off_until_none_is_off():
-    class Fits:  # the "fit" is the marks themselves; the same when their mean distance is small
+def test_the_detector_keys_user_puts_right_the_mark_furthest_off_until_none_is_off():
+    hand = {"a": (0.0, 0.0), "b": (100.0, 0.0), "c": (0.0, 100.0)}
+    seen = []
+
+    class Fits:  # the "fit" is the marks; every fit's keypoints (ghosts) where the hand marks are
         def fit_marks(self, marks):
+            seen.append(dict(marks))
             return marks
 
+        def projected(self, fit):
+            return {**hand, "d": (50.0, 50.0)}
+
         def distances(self, marks):
-            d = float(np.mean([np.hypot(*np.subtract(marks[n], hand[n])) for n in hand]))
+            d = float(np.mean([np.hypot(*np.subtract(marks.get(n, uv), uv)) for n, uv in hand.items()]))
             return d, d
 
         def same(self, d3, d2):
             return d3 <= 2.0
 
-    hand = {"a": (0.0, 0.0), "b": (100.0, 0.0), "c": (0.0, 100.0)}
-    found = {"a": (1.0, 0.0), "b": (100.0, 12.0), "c": (0.0, 106.0)}
+    # the key places "a" within a click, "b" 12 px off and "d", which the annotator left out, 40 px
+    # off the hand fit's; it leaves out "c", whose ghost sits on its point
+    found = {"a": (1.0, 0.0), "b": (100.0, 12.0), "d": (90.0, 50.0)}
     steps = ba.drags_to_the_hand_fit(found, hand, Fits(), accept_px=5.0)
-    # the key (mean 6.3 px off), "b" dragged (2.3), "c" dragged (0.3); "a" is within a click
-    assert [s["action"] for s in steps] == [1, 2, 3]
-    assert [s["same"] for s in steps] == [False, False, True]
-    assert ba.same_from(steps, "same") == 3
+    assert seen[1] == {"a": (1.0, 0.0), "b": (100.0, 12.0)}   # "d" removed first
+    assert seen[2] == {"a": (1.0, 0.0), "b": (100.0, 0.0)}    # then "b" dragged onto its point
+    assert [s["same"] for s in steps] == [False, False, True] and ba.same_from(steps, "same") == 3
 
 
 def test_quick_against_full_compares_both_quick_policies_on_the_same_full_fits(tmp_path):
