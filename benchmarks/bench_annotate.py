@@ -58,10 +58,10 @@ Definitions:
   the photo, so the wheels' hubs found there join the marks, as ``carbody reconstruct`` fits:
   does the photo's own evidence let fewer marks reach the hand fit? ``--with-outline`` gives
   every fit the car's outline in the photo as well (``reconstruct --outline``, wheels on too).
-- **A detector's key** (``--detector PCT ... [--detector-net W.pt]``): one key places every
-  hand-marked keypoint where a detector puts it, then the user drags the mark furthest off its
-  hand mark onto it while one is more than ``--accept`` off. The detectors: the hand marks moved
-  at random by PCT % of the car's length at the median, and ``benchmarks/probe_keypoints.py``'s
+- **A detector's key** (``--detector PCT ... [--detector-net W.pt]``): one key places keypoints
+  where a detector puts them, then the user puts right the mark furthest off while one is more
+  than ``--accept`` off. The detectors: the hand marks moved
+  at random by PCT % of the car's length at the median (every hand mark placed), and ``benchmarks/probe_keypoints.py``'s
   network (reading the hand marks' box taken lower, as a box dragged round the car would be,
   and the photo mirrored too). The network's key places every keypoint whose heat map peaks at
   ``--detector-peak`` (0.3) or more: some the annotator left out, which the user removes when
@@ -403,18 +403,25 @@ def brisk_latencies(clicks: int) -> list[float]:
     return out
 
 
-def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
-    """The fewest hand marks a greedy order needs to reach the hand fit (module docstring)."""
-    from carbody.annotate import live_fit
+def size_and_prior(image: Path) -> tuple[tuple[int, int], object]:
+    """(the photo's (width, height) px, the view prior the page's fits have: the classifier's)."""
     from carbody.annotate.session import AnnotationSession
-    from carbody.fit import read_keypoints
 
-    hand = read_keypoints(marks_file).points
     with tempfile.TemporaryDirectory() as tmp:
         session = AnnotationSession(image, output=Path(tmp) / "marks.json", full_fits=False, warm_up=False)
         session.wait_started(120)  # the classifier's prior, as the guided session has it
         size, prior = session.image_size, session.prior
         session.close()
+    return size, prior
+
+
+def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
+    """The fewest hand marks a greedy order needs to reach the hand fit (module docstring)."""
+    from carbody.annotate import live_fit
+    from carbody.fit import read_keypoints
+
+    hand = read_keypoints(marks_file).points
+    size, prior = size_and_prior(image)
     from carbody.view.predict import read_image
 
     photo = read_image(image) if args.with_wheels or args.with_outline else None
@@ -442,17 +449,12 @@ def oracle(name: str, image: Path, marks_file: Path, args) -> dict:
 
 
 def detected(name: str, image: Path, marks_file: Path, args) -> list[dict]:
-    """How many actions a key that places every hand-marked keypoint where a detector puts it
-    would leave (module docstring, ``--detector``): one row per detector."""
-    from carbody.annotate.session import AnnotationSession
+    """How many actions a key that places keypoints where a detector puts them would leave (module
+    docstring, ``--detector``): one row per detector."""
     from carbody.fit import read_keypoints
 
     hand = read_keypoints(marks_file).points
-    with tempfile.TemporaryDirectory() as tmp:
-        session = AnnotationSession(image, output=Path(tmp) / "marks.json", full_fits=False, warm_up=False)
-        session.wait_started(120)  # the classifier's prior, as the guided session has it
-        size, prior = session.image_size, session.prior
-        session.close()
+    size, prior = size_and_prior(image)
     ref = Reference(hand, size, prior, args.accept, args.draws)
     accept_px = args.accept * ref.length_px
     detectors = [(f"hand marks moved {e:g} % of the car's length (median)", e) for e in args.detector]
