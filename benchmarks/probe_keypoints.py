@@ -204,28 +204,15 @@ def train(renders: Path, out: Path, epochs: int, seed: int = 0, strong: bool = F
     for f in sorted(renders.glob("*.jpg")):
         meta = json.loads(f.with_suffix(".json").read_text())
         data.append((cv2.imread(str(f))[..., ::-1].copy(), meta["keypoints"], meta["box"]))
-    net, batch = network(), 16
+    net = network()
     with torch.no_grad():  # start every map near "no keypoint here" (CenterNet's prior)
         net[1].head.bias.fill_(-4.6)
-    steps = len(data) // batch
-    optimiser = torch.optim.AdamW(net.parameters(), 2e-3, weight_decay=1e-4)
-    schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, 3e-3, total_steps=epochs * steps)
-    rng, losses = np.random.default_rng(seed), []
-    for _ in range(epochs):
-        order, total, start = rng.permutation(len(data)), 0.0, time.perf_counter()
-        net.train()
-        for k in range(steps):
-            xs, ys = zip(*[training_pair(*data[i], names, rng, strong) for i in order[k * batch:(k + 1) * batch]])
-            loss = focal_loss(net(torch.stack(xs)), torch.stack(ys))
-            optimiser.zero_grad()
-            loss.backward()
-            optimiser.step()
-            schedule.step()
-            total += float(loss.detach())
-        losses.append(total / steps)
-        print(f"epoch {len(losses)}: loss {losses[-1]:.3f} ({time.perf_counter() - start:.0f} s)", flush=True)
-    torch.save(net.state_dict(), out)
-    return losses
+
+    def batch_loss(net, items, rng):
+        xs, ys = zip(*[training_pair(*item, names, rng, strong) for item in items])
+        return focal_loss(net(torch.stack(xs)), torch.stack(ys))
+
+    return tyres.fit_network(net, data, epochs, seed, batch_loss, out)
 
 
 def trained_network(weights: Path):
@@ -296,8 +283,8 @@ def measure(net, data: Path, flip: bool = False) -> list[dict]:
 
 
 def measure_renders(net, renders: Path) -> list[float]:
-    """Each keypoint's distance from its detection, % of the car's length in the picture, over
-    the renders in ``renders``."""
+    """Each keypoint's distance from its detection, % of the larger side of the car's box in the
+    picture (S, as on the real photos), over the renders in ``renders``."""
     import cv2
 
     names, distances = keypoint_names(), []
@@ -307,7 +294,8 @@ def measure_renders(net, renders: Path) -> list[float]:
         if not points:
             continue
         uv, _ = detect(net, cv2.imread(str(f))[..., ::-1].copy(), meta["box"])
-        size = meta["box"][2] - meta["box"][0]
+        x0, y0, x1, y1 = meta["box"]
+        size = max(x1 - x0, y1 - y0)
         distances += [100.0 * float(np.linalg.norm(uv[names.index(n)] - np.asarray(p))) / size
                       for n, p in points.items()]
     return distances
@@ -356,7 +344,7 @@ def main(argv: list[str] | None = None) -> int:
             render(folder, 1, args.held_out, seed=tyres.SEED + 1)
         held_out = measure_renders(net, folder)
         print(f"held-out renders: {len(held_out)} keypoints, median distance {statistics.median(held_out):.1f} % of "
-              "the car's length; " + ", ".join(f"{s:.0%} within {w:g} %" for w, s in within(held_out).items()))
+              "S; " + ", ".join(f"{s:.0%} within {w:g} %" for w, s in within(held_out).items()))
     if not (args.data / "keypoints").is_dir():
         print(f"no real photos at {args.data}: nothing to measure")
         return 0

@@ -250,28 +250,40 @@ def train(renders: Path, out: Path, epochs: int, seed: int = 0) -> list[float]:
     torch.manual_seed(seed)
     data = [(cv2.imread(str(f))[..., ::-1].copy(), cv2.imread(str(f).replace(".jpg", "_mask.png"), 0),
              [float(v) for v in f.with_suffix(".box").read_text().split()]) for f in sorted(renders.glob("*.jpg"))]
-    net, batch = network(), 16
+
+    def batch_loss(net, items, rng):
+        xs, ys = zip(*[training_pair(*item, rng) for item in items])
+        x, y = torch.stack(xs), torch.stack(ys)
+        logits = net(x)
+        p = torch.sigmoid(logits)
+        dice = 1 - (2 * (p * y).sum((1, 2, 3)) + 1) / (p.sum((1, 2, 3)) + y.sum((1, 2, 3)) + 1)
+        return F.binary_cross_entropy_with_logits(logits, y, pos_weight=torch.tensor(3.0)) + dice.mean()
+
+    return fit_network(network(), data, epochs, seed, batch_loss, out)
+
+
+def fit_network(net, data: list, epochs: int, seed: int, batch_loss, out: Path, batch: int = 16) -> list[float]:
+    """Train ``net`` on ``data`` (one item per render, shuffled from ``seed`` each epoch) in batches
+    of ``batch``, ``batch_loss(net, items, rng)`` giving each one's loss (AdamW, a one-cycle
+    rate); save its weights to ``out``: the mean loss of each epoch."""
+    import torch
+
     steps = len(data) // batch
     optimiser = torch.optim.AdamW(net.parameters(), 2e-3, weight_decay=1e-4)
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, 3e-3, total_steps=epochs * steps)
     rng, losses = np.random.default_rng(seed), []
     for _ in range(epochs):
-        order, total = rng.permutation(len(data)), 0.0
+        order, total, start = rng.permutation(len(data)), 0.0, time.perf_counter()
         net.train()
         for k in range(steps):
-            xs, ys = zip(*[training_pair(*data[i], rng) for i in order[k * batch:(k + 1) * batch]])
-            x, y = torch.stack(xs), torch.stack(ys)
-            logits = net(x)
-            p = torch.sigmoid(logits)
-            dice = 1 - (2 * (p * y).sum((1, 2, 3)) + 1) / (p.sum((1, 2, 3)) + y.sum((1, 2, 3)) + 1)
-            loss = F.binary_cross_entropy_with_logits(logits, y, pos_weight=torch.tensor(3.0)) + dice.mean()
+            loss = batch_loss(net, [data[i] for i in order[k * batch:(k + 1) * batch]], rng)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
             schedule.step()
             total += float(loss.detach())
         losses.append(total / steps)
-        print(f"epoch {len(losses)}: loss {losses[-1]:.3f}", flush=True)
+        print(f"epoch {len(losses)}: loss {losses[-1]:.3f} ({time.perf_counter() - start:.0f} s)", flush=True)
     torch.save(net.state_dict(), out)
     return losses
 
