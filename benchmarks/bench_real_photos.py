@@ -164,6 +164,8 @@ OUTCOMES = ("body", "refused", "error")
 REGION_PARTS = (("windshield", "front_glass"), ("rear_window", "back_glass"), ("hood", "hood"))
 REGION_COLOURS = {"windshield": (0, 230, 255), "rear_window": (60, 255, 60), "hood": (255, 60, 255)}
 WHEEL_ANNOTATED, WHEEL_PROJECTED = (255, 255, 255), (0, 140, 255)
+#: The wheel sheet's hub found and trusted by the fit (BGR).
+WHEEL_FOUND = (60, 60, 255)
 
 #: A view found within this of the estimate counts as right (the estimate itself is ±10°).
 VIEW_OK_DEG = 15.0
@@ -1339,6 +1341,69 @@ def contact_sheet(photos: list[Photo], rows: list[dict], out: Path, columns: int
     return path
 
 
+#: A wheel sheet tile's side (px) and how far its crop reaches round the polygon (its box's sides).
+WHEEL_TILE, WHEEL_CROP = 200, 1.6
+
+
+def wheel_tiles(photo: Photo, row: dict, out: Path) -> list[np.ndarray]:
+    """(WHEEL_TILE + 20, WHEEL_TILE, 3) uint8 BGR per annotated wheel of a photo with a body: the
+    photo round the polygon (a square :data:`WHEEL_CROP` times its box's larger side), the polygon
+    and its centroid (white), the fitted hub it is matched to (orange cross), the hub the fit found
+    there and trusted (red ring), and the two distances in % of S written below."""
+    import cv2
+
+    from carbody.fit.wheels import WHEELS
+
+    wheels = annotated_wheel_centres(photo)
+    if row["outcome"] != "body" or not len(wheels):
+        return []
+    report, wireframe = fitted(out / photo.name)
+    projected = projected_wheel_centres(report["fit"]["camera"], wireframe.control_points)
+    found = trusted_hubs(report["fit"].get("wheels"))
+    polygons = [p for p in photo.parts["wheel"] if not polygon(p).centroid.is_empty]
+    img = cv2.imread(str(photo.image))
+    tiles = []
+    for i, j, d in wheel_matches(wheels, projected):
+        side = WHEEL_CROP * float(np.ptp(polygons[i], axis=0).max())
+        k = WHEEL_TILE / side
+        origin = wheels[i] - side / 2
+        warp = np.array([[k, 0.0, -k * origin[0]], [0.0, k, -k * origin[1]]])
+        tile = cv2.warpAffine(img, warp, (WHEEL_TILE, WHEEL_TILE), flags=cv2.INTER_AREA,
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=(30, 30, 30))
+
+        def at(point) -> tuple[int, int]:
+            return tuple(int(v) for v in np.round((np.asarray(point) - origin) * k * 16))
+
+        cv2.polylines(tile, [np.array([at(q) for q in polygons[i]])], True, WHEEL_ANNOTATED, 1, cv2.LINE_AA, 4)
+        cv2.circle(tile, at(wheels[i]), 4 * 16, WHEEL_ANNOTATED, -1, cv2.LINE_AA, 4)
+        cv2.drawMarker(tile, tuple(v // 16 for v in at(projected[j])), WHEEL_PROJECTED, cv2.MARKER_TILTED_CROSS, 12, 2)
+        text = f"{photo.name.removeprefix('cps_')} {WHEELS[j]}: {100 * d / row['image_size_px']:.1f}%"
+        if WHEELS[j] in found:
+            cv2.circle(tile, at(found[WHEELS[j]]), 7 * 16, WHEEL_FOUND, 2, cv2.LINE_AA, 4)
+            text += f", found {100 * np.linalg.norm(wheels[i] - found[WHEELS[j]]) / row['image_size_px']:.1f}%"
+        band = np.full((20, WHEEL_TILE, 3), 15, np.uint8)
+        cv2.putText(band, text, (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.36, (235, 235, 235), 1, cv2.LINE_AA)
+        tiles.append(np.vstack([tile, band]))
+    return tiles
+
+
+def wheel_sheet(photos: list[Photo], rows: list[dict], out: Path, columns: int = 8) -> Path | None:
+    """Every annotated wheel of the photos with a body in one picture, ``OUT/wheel_sheet.png``
+    (:func:`wheel_tiles`), for a person to see where the hub lies against the polygon's centroid
+    and the hubs placed; None without such a wheel."""
+    import cv2
+
+    tiles = [t for p, r in zip(photos, rows) for t in wheel_tiles(p, r, out)]
+    if not tiles:
+        return None
+    columns = max(1, min(columns, len(tiles)))
+    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % columns)
+    path = out / "wheel_sheet.png"
+    if not cv2.imwrite(str(path), np.vstack([np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)])):
+        raise OSError(f"{path}: cannot write the wheel sheet")
+    return path
+
+
 # --- main ------------------------------------------------------------------------------------
 
 def main(argv: list[str] | None = None) -> int:
@@ -1360,7 +1425,7 @@ def main(argv: list[str] | None = None) -> int:
                          "times slower)")
     ap.add_argument("--timeout", type=float, default=TIMEOUT_S, help="seconds per reconstruct (an error after)")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows and summary as JSON here")
-    ap.add_argument("--no-sheet", action="store_true", help="skip the contact sheet")
+    ap.add_argument("--no-sheet", action="store_true", help="skip the contact sheet and the wheel sheet")
     ap.add_argument("--outline", action="store_true",
                     help="reconstruct with --outline: the car's outline in the photo fitted with the marks")
     ap.add_argument("--check-estimates", action="store_true",
@@ -1396,6 +1461,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = [measure(p, r, args.out) for p, r in zip(photos, runs)]
     summary = summarise(rows)
     sheet = None if args.no_sheet else contact_sheet(photos, rows, args.out)
+    wheel_picture = None if args.no_sheet else wheel_sheet(photos, rows, args.out)
 
     threads = {r.get("blas_threads") for r in runs}  # the runs', stored ones with --reuse
     machine = machine_line(load_start, args.workers, args.reuse,
@@ -1417,11 +1483,15 @@ def main(argv: list[str] | None = None) -> int:
         print(estimate_table(checks))
     if sheet is not None:
         print(f"\ncontact sheet: {sheet}")
+    if wheel_picture is not None:
+        print(f"wheel sheet: {wheel_picture}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"machine": machine, "rows": rows, "summary": summary, "targets": targets,
                                          "estimate_checks": checks,
-                                         "contact_sheet": None if sheet is None else str(sheet)}, indent=1))
+                                         "contact_sheet": None if sheet is None else str(sheet),
+                                         "wheel_sheet": None if wheel_picture is None else str(wheel_picture)},
+                                        indent=1))
     return 0
 
 

@@ -269,6 +269,19 @@ def test_the_contact_sheet_is_written_into_the_output_folder(bench_run):
 
 
 @needs_data
+def test_the_wheel_sheet_has_a_tile_for_each_annotated_wheel_of_a_body(bench, bench_run):
+    import cv2
+
+    out, stdout, data = bench_run
+    wheels = sum(r["wheels_annotated"] for r in data["rows"] if r["outcome"] == "body")
+    assert wheels and data["wheel_sheet"] == str(out / "wheel_sheet.png") and "wheel sheet: " in stdout
+    sheet = cv2.imread(data["wheel_sheet"])
+    columns = min(wheels, 8)
+    rows = -(-wheels // columns)
+    assert sheet.shape == (rows * (bench.WHEEL_TILE + 20), columns * bench.WHEEL_TILE, 3)
+
+
+@needs_data
 def test_a_view_found_far_from_the_estimate_is_measured_at_the_estimate_too(bench_run):
     """Every body whose view lies more than 15° from the estimate has the estimate-kept fit
     beside it, measured the same way (the estimate is by eye: the human polygons arbitrate)."""
