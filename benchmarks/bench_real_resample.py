@@ -14,8 +14,12 @@ many views found lie within 15° of the estimate, how far the re-markings' views
 photo's own fit, and |length| and |wheelbase| errors against the published figures. Fits run
 in a pool of warm processes (one BLAS thread each), so the times are not a fresh process's.
 
+Most of these photos' cars are rows of the table of published cars the fit sizes a car by.
+``--table-without-car`` leaves each photo's rows out of it for its runs (those with its published
+length and wheelbase), so the size is read as it is for a car the table lacks.
+
 Run: python benchmarks/bench_real_resample.py [--draws 4] [--keep 0.8] [--noise 0.5] [--seed 0]
-     [--workers 2] [--photos N | NAME ...] [--json OUT.json]
+     [--workers 2] [--photos N | NAME ...] [--table-without-car] [--json OUT.json]
 """
 from __future__ import annotations
 
@@ -61,14 +65,36 @@ def _init_worker() -> None:
     threadpool_limits(1)
 
 
+def same_car_rows(photo: Photo) -> tuple[str, ...]:
+    """The rows of the size table (``carbody/data/car_dimensions.csv``) that are the photo's car,
+    or read as it: those with its published length and wheelbase (to 1 mm)."""
+    from carbody.fit.size import DIMENSIONS, published_cars
+
+    published = photo.meta.get("published_mm") or {}
+    if "length" not in published or "wheelbase" not in published:
+        return ()
+    table = published_cars()
+    length, wheelbase = DIMENSIONS.index("length_mm"), DIMENSIONS.index("wheelbase_mm")
+    return tuple(n for n, d in zip(table.names, table.dimensions)
+                 if abs(d[length] - published["length"]) <= 1 and abs(d[wheelbase] - published["wheelbase"]) <= 1)
+
+
 def run_one(task: tuple) -> dict:
-    """Reconstruct one (photo, draw); draw 0 is the photo's own marks."""
+    """Reconstruct one (photo, draw, marks, size-table rows to leave out); draw 0 is the photo's
+    own marks. Rows left out are taken out of the table the fit sizes the car by, in this worker
+    process, for this run only."""
+    import carbody.fit.size as size
     from carbody.errors import CarbodyError, FitRefused
     from carbody.pipeline import reconstruct
 
-    photo, draw, marks = task
+    photo, draw, marks, left_out = task
+    shipped = size.published_cars
+    if left_out:
+        without = shipped().without(*left_out)
+        size.published_cars = lambda: without
     row = {"photo": photo.name, "draw": draw, "marks": len(marks), "outcome": None, "message": None,
-           "view_deg": None, "length_mm": None, "wheelbase_mm": None, "seconds": None}
+           "view_deg": None, "length_mm": None, "wheelbase_mm": None, "seconds": None,
+           "table_left_out": list(left_out)}
     start = time.perf_counter()
     try:
         rec = reconstruct(str(photo.image), marks)
@@ -82,25 +108,29 @@ def run_one(task: tuple) -> dict:
         sizes = rec.wireframe.measure()
         row.update(outcome="body", view_deg=float(rec.fit.view.azimuth) % 360.0,
                    length_mm=sizes["length_mm"], wheelbase_mm=sizes["wheelbase_mm"])
+    finally:
+        size.published_cars = shipped
     row["seconds"] = time.perf_counter() - start
     return row
 
 
 def tasks(photos: list[Photo], draws: int, keep: float, noise_pct: float, seed: int,
-          order: list[str] | None = None) -> list[tuple]:
-    """(photo, draw, marks) to run: each photo's own marks (draw 0), then its re-markings. Each
-    photo's draws are seeded by ``seed`` and its place in ``order`` (the data's photo names, in
-    the order the full run takes them; default ``photos``), so a run of some photos draws what
-    the full run drew for them."""
+          order: list[str] | None = None, table_without_car: bool = False) -> list[tuple]:
+    """(photo, draw, marks, size-table rows to leave out) to run: each photo's own marks (draw
+    0), then its re-markings. Each photo's draws are seeded by ``seed`` and its place in
+    ``order`` (the data's photo names, in the order the full run takes them; default
+    ``photos``), so a run of some photos draws what the full run drew for them. With
+    ``table_without_car`` each photo's car is left out of the size table (:func:`same_car_rows`)."""
     order = [p.name for p in photos] if order is None else order
     out = []
     for photo in photos:
         marks = photo.meta["keypoints"]
         size, _ = car_image_size(photo)
-        out.append((photo, 0, {k: tuple(v) for k, v in marks.items()}))
+        left_out = same_car_rows(photo) if table_without_car else ()
+        out.append((photo, 0, {k: tuple(v) for k, v in marks.items()}, left_out))
         rng = np.random.default_rng([seed, order.index(photo.name)])
-        out += [(photo, d, remarked(marks, rng, keep, noise_pct / 100.0 * size, tuple(photo.meta["image_size"])))
-                for d in range(1, draws + 1)]
+        out += [(photo, d, remarked(marks, rng, keep, noise_pct / 100.0 * size, tuple(photo.meta["image_size"])),
+                 left_out) for d in range(1, draws + 1)]
     return out
 
 
@@ -186,6 +216,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", type=Path, default=None, help="also write the rows and summary here")
+    ap.add_argument("--table-without-car", action="store_true",
+                    help="size each photo's car with its own rows left out of the table of published cars "
+                         "(those with its published length and wheelbase), as a car not in the table is")
     args = ap.parse_args(argv)
     if not (0 < args.keep <= 1) or args.draws < 0 or args.noise < 0 or args.workers < 1:
         ap.error("--keep must be in (0, 1], --draws and --noise at least 0, --workers at least 1")
@@ -200,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers, initializer=_init_worker) as pool:
         rows = list(pool.map(run_one, tasks(photos, args.draws, args.keep, args.noise, args.seed,
-                                                  [p.name for p in every])))
+                                            [p.name for p in every], args.table_without_car)))
     print(f"machine: {os.cpu_count()} cores, load {load[0]:.1f} at the start; {args.workers} workers; "
           f"{time.perf_counter() - start:.0f} s in all")
     summary = report(photos, rows, args)

@@ -218,6 +218,11 @@ class FitPolicy:
     size_move_misfit: float = 0.5
     size_move_halvings: int = 3
 
+    #: The fitted car's length in wheelbases is moved to the one the published cars give it
+    #: (:func:`carbody.fit.single_view._lengthened`), as far as the marks let it: an end they
+    #: do not show is then the table's guess, not the library mix's.
+    size_length_move: bool = True
+
     # ---- the car's outline in the photo (carbody.fit.outline)
 
     #: The segmentation works on the photo scaled down to this many pixels on its longer side:

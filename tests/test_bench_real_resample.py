@@ -51,11 +51,31 @@ def test_a_run_of_some_photos_draws_what_the_full_run_drew_for_them(bench):
                           {"keypoints": {n: [u + i, v] for n, (u, v) in MARKS.items()}, "image_size": [640, 480]}, {})
               for i in range(4)]
     order = [p.name for p in photos]
-    full = {(p.name, d): marks for p, d, marks in bench.tasks(photos, 3, 0.7, 1.0, 5)}
+    full = {(p.name, d): marks for p, d, marks, _ in bench.tasks(photos, 3, 0.7, 1.0, 5)}
     some = bench.tasks(photos[2:3], 3, 0.7, 1.0, 5, order)
-    assert [d for _, d, _ in some] == [0, 1, 2, 3]
-    assert all(marks == full[(p.name, d)] for p, d, marks in some)
-    assert any(marks != full[("p2", d)] for _, d, marks in bench.tasks(photos[2:3], 3, 0.7, 1.0, 5) if d)
+    assert [d for _, d, _, _ in some] == [0, 1, 2, 3]
+    assert all(marks == full[(p.name, d)] for p, d, marks, _ in some)
+    assert any(marks != full[("p2", d)] for _, d, marks, _ in bench.tasks(photos[2:3], 3, 0.7, 1.0, 5) if d)
+
+
+def test_the_photos_car_leaves_the_size_table_for_its_runs_only(bench):
+    """--table-without-car: the rows with the photo's published length and wheelbase leave the
+    table the fit sizes by, and come back after the run."""
+    from pathlib import Path
+
+    import carbody.fit.size as size
+
+    car = {"length": 4795, "width": 1855, "height": 1835, "wheelbase": 2745}  # a Fortuner AN160's
+    photo = bench.Photo("p", Path("p.jpg"), Path("p.json"),
+                        {"keypoints": dict(MARKS), "image_size": [640, 480], "published_mm": car}, {})
+    rows = bench.same_car_rows(photo)
+    assert rows == ("Toyota Fortuner AN160",)
+    assert [t[3] for t in bench.tasks([photo], 2, 0.8, 0.5, 0, table_without_car=True)] == [rows] * 3
+    assert [t[3] for t in bench.tasks([photo], 2, 0.8, 0.5, 0)] == [()] * 3
+    shipped = size.published_cars()
+    row = bench.run_one((photo, 0, {}, rows))  # no marks: refused before any fit, the table put back
+    assert row["outcome"] in ("refused", "error") and row["table_left_out"] == list(rows)
+    assert size.published_cars() is shipped and "Toyota Fortuner AN160" in shipped.names
 
 
 def test_too_few_kept_are_topped_up_to_six(bench):

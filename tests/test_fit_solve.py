@@ -486,6 +486,51 @@ def test_the_joint_field_keeps_a_near_side_view_from_widening_the_car(first_libr
     assert width_alone > 1.06 * true_width and error_alone > 2 * error, (width_alone, error_alone)
 
 
+def _length_and_width(kps, view, library, wb, move):
+    """(length, width) in wheelbases of a fit with the length move on or off."""
+    from dataclasses import replace
+
+    from carbody.fit.options import FitOptions
+
+    options = FitOptions(policy=replace(FIT_POLICY, size_length_move=move))
+    res = fit_wireframe(kps, view, library, wheelbase_mm=wb, refine=False, options=options)
+    cp = res.wireframe.control_points
+    return np.ptp(cp[:, 1]) / wb, 2 * cp[:, 0].max() / wb, res.size
+
+
+def test_an_end_left_unmarked_takes_the_length_the_published_cars_give(library, topology):
+    """Seen from the front three-quarter with nothing behind the rear wheel marked, a left-out
+    MPV's length is the library mix's guess. The length move takes it (nearly all the way) to
+    the one the table of published cars reads from the rest of the car, and leaves its width."""
+    t, loo, truth = _left_out(library, "Toyota Sienta XP170")
+    wb = float(library.template_wheelbase_mm[t])
+    slots, uv = _observe(truth, View(30, 10), scale=0.4, noise=0.5)
+    rear = truth[topology.junction_point_index("rear_arch_top"), 1]
+    kps = {s.name: p for s, p in zip(slots, uv) if truth[s.point_index, 1] <= rear}
+    length_off, width_off, size = _length_and_width(kps, View(30, 10), loo, wb, move=False)
+    length_on, width_on, _ = _length_and_width(kps, View(30, 10), loo, wb, move=True)
+    table = size.dimensions_mm["length"] / size.dimensions_mm["wheelbase"]
+    assert abs(length_off - table) > 0.01, (length_off, table)  # the mix and the table differ
+    assert abs(length_on - table) < 0.25 * abs(length_off - table), (length_off, length_on, table)
+    assert width_on == pytest.approx(width_off, rel=0.005)
+
+
+def test_marks_that_pin_the_length_keep_it(library):
+    """Seen 15° off the side with every visible keypoint marked, the marks pin the length: the
+    table's differing guess moves neither it nor, through the shape's correlations, the width
+    (a move by the posterior's regression on the length alone, not weighed against the length's
+    own uncertainty, made this car 7 % narrower)."""
+    t, loo, truth = _left_out(library, "Tesla Model 3")
+    wb = float(library.template_wheelbase_mm[t])
+    slots, uv = _observe(truth, View(105), scale=0.5, noise=0.5)
+    kps = {s.name: p for s, p in zip(slots, uv)}
+    length_off, width_off, size = _length_and_width(kps, 105, loo, wb, move=False)
+    length_on, width_on, _ = _length_and_width(kps, 105, loo, wb, move=True)
+    assert abs(size.dimensions_mm["length"] / size.dimensions_mm["wheelbase"] / length_off - 1) > 0.01
+    assert length_on == pytest.approx(length_off, rel=0.003)
+    assert width_on == pytest.approx(width_off, rel=0.005)
+
+
 def test_deformation_leaves_a_library_car_alone(library, topology):
     """Marks the mix already meets (a library model, no noise) move nothing."""
     truth = library.points(library.original(4))

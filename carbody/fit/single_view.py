@@ -39,8 +39,9 @@ from carbody.fit.result import FitResult
 from carbody.fit.robust import explains_poorly, left_out_in_turn, marks_noise, twin_exchanges
 from carbody.fit.search import distinct, refine, search_views, view_spread, with_roll
 from carbody.fit.shape_prior import prepared_field
-from carbody.fit.size import SizeEstimate, estimate_size
-from carbody.fit.solve import along_scale, joint_keypoint_covariance, reaches_camera, scale_spread, scale_trade
+from carbody.fit.size import SizeEstimate, car_extents, estimate_size, extent_rows
+from carbody.fit.solve import (along_keypoints, along_scale, joint_keypoint_covariance, reaches_camera,
+                               scale_spread, scale_trade)
 from carbody.fit.view_prior import ViewPrior
 from carbody.library import Library, check_library
 from carbody.policy import FitPolicy
@@ -156,6 +157,9 @@ def fit_wireframe(keypoints: dict[str, tuple[float, float]], view: View | float 
             (mix_wheelbase_mm(turn.hypothesis, library), "library mix")
         if source == "proportions":
             turn.hypothesis = _sized(turn.hypothesis, size, options.policy)
+        if size is not None and options.policy.size_length_move:
+            turn.hypothesis, moved = _lengthened(turn.hypothesis, size, options.policy)
+            size = replace(size, length_move=moved)
         result = _result(turn, photo_uv, prior, library, options, wheelbase, source, name)
         result.outline, result.wheels = outline_fit, wheels_fit
         result.size, result.wheelbase_by_mix_mm = size, size_by_mix
@@ -342,6 +346,38 @@ def _sized(hypothesis: Hypothesis, size: SizeEstimate, policy: FitPolicy) -> Hyp
             return replace(hypothesis, solution=moved)
         log_scale /= 2.0
     return hypothesis
+
+
+def _lengthened(hypothesis: Hypothesis, size: SizeEstimate, policy: FitPolicy) -> tuple[Hypothesis, float]:
+    """(The hypothesis with its length in wheelbases moved toward the one the published cars
+    give it, how far it moved as a fraction.) An end the marks do not show is the library mix's
+    guess; the table (:attr:`SizeEstimate.dimensions_mm`) reads it from all the car's
+    proportions, each as sure as the fit is of it. The shape moves as its posterior regresses it
+    on the length, weighed against the length's variance as the size read it
+    (:func:`~carbody.fit.solve.along_keypoints`): marks that pin the length keep it. A move
+    the marks see is halved as the size's is (``size_move_misfit``, ``size_move_halvings``);
+    none is made that would put part of the car through a close camera."""
+    sol = hypothesis.solution
+    if size.dimensions_mm is None or size.proportion_covariance is None or sol.posterior is None \
+            or sol.posterior.scale_solve is None or sol.shape is None:
+        return hypothesis, 0.0
+    points = sol.shape.reshape(-1, 3)
+    length = car_extents(points)[0]
+    step = np.log(size.dimensions_mm["length"] / size.dimensions_mm["wheelbase"] * NORMALISED_WHEELBASE / length)
+    rows = extent_rows(points)[0] / length  # the log length's change per keypoint coordinate
+    variance = float(size.proportion_covariance[0, 0])  # the length's as the size read it
+    noise_px = np.sqrt(sol.posterior.lam) * sol.rho
+    before = float(np.mean(sol.residual_px))
+    for _ in range(policy.size_move_halvings + 1):
+        moved = along_keypoints(sol, rows, step, variance, hypothesis.kept_slots,
+                                hypothesis.marks.uv[hypothesis.kept], hypothesis.view,
+                                load_topology().keypoint_point_indices)
+        if float(np.mean(moved.residual_px)) - before <= policy.size_move_misfit * noise_px \
+                and not reaches_camera(moved.shape, hypothesis.view):
+            after = car_extents(moved.shape.reshape(-1, 3))[0]
+            return replace(hypothesis, solution=moved), float(np.log(after / length))
+        step /= 2.0
+    return hypothesis, 0.0
 
 
 def _result(turn: Turn, photo_uv: np.ndarray, prior: ViewPrior, library: Library, options: FitOptions,

@@ -139,6 +139,8 @@ class SizeEstimate:
             likely off by, as the table reads its proportions (0 without ``scale_move``): the
             fit moves the car back along what the marks cannot tell from the scale
             (:func:`carbody.fit.solve.along_scale`).
+        length_move: how far the fit then moved the car's length toward the one in
+            ``dimensions_mm``, as a fraction (+: longer; 0 when not moved).
     """
 
     wheelbase_mm: float
@@ -151,6 +153,7 @@ class SizeEstimate:
     dimension_spreads: dict[str, float] | None = None
     scale_steps: float = 0.0
     classes: dict[str, float] | None = None
+    length_move: float = 0.0
 
     def as_dict(self) -> dict:
         return {"wheelbase_mm": self.wheelbase_mm, "spread_pct": 100.0 * self.spread,
@@ -159,7 +162,7 @@ class SizeEstimate:
                 "proportion_spreads_pct": {k: 100.0 * v for k, v in self.proportion_spreads.items()},
                 "dimensions_mm": self.dimensions_mm,
                 "dimension_spreads_pct": {k: 100.0 * v for k, v in (self.dimension_spreads or {}).items()},
-                "scale_steps": self.scale_steps,
+                "scale_steps": self.scale_steps, "length_move_pct": 100.0 * self.length_move,
                 "classes": {k: round(v, 3) for k, v in (self.classes or {}).items()}}
 
 
@@ -183,15 +186,13 @@ def estimate_size(shape: np.ndarray, keypoint_covariance: np.ndarray | None, flo
     """
     cars = cars or published_cars()
     points = np.asarray(shape, dtype=float).reshape(-1, 3)
-    samples = sample_curves(points, 64).reshape(-1, 3)
-    extents = np.array([np.ptp(samples[:, 1]), 2.0 * samples[:, 0].max(),
-                        samples[:, 2].max() + TYRE_RADIUS_NORM])
+    extents = car_extents(points)
     if not (np.all(np.isfinite(extents)) and np.all(extents > 0)):
         raise FitError("the fitted car has no length, width or height to size it by")
     noise = np.diag(np.full(3, floor ** 2))
     noise[2, 2] += (TYRE_RADIUS_SPREAD_NORM / extents[2]) ** 2
     if keypoint_covariance is not None:
-        J = _extent_rows(points) / extents[:, None]
+        J = extent_rows(points) / extents[:, None]
         noise += J @ keypoint_covariance @ J.T
     variance = np.diagonal(noise)
     observed = np.log(extents / NORMALISED_WHEELBASE)
@@ -237,7 +238,15 @@ def _class_posterior(classes: list[tuple[str, float, np.ndarray, np.ndarray]], o
     return mean, cov, float(weights @ np.array(slopes)), weights
 
 
-def _extent_rows(points: np.ndarray) -> np.ndarray:
+def car_extents(points: np.ndarray) -> np.ndarray:
+    """(3,) the length, width and height of a car's control points (280, 3), as the size reads
+    them: its curves' extents (both halves' width; the height from the ground, a tyre's radius
+    below the wheel centres), the points' units."""
+    samples = sample_curves(np.asarray(points, dtype=float).reshape(-1, 3), 64).reshape(-1, 3)
+    return np.array([np.ptp(samples[:, 1]), 2.0 * samples[:, 0].max(), samples[:, 2].max() + TYRE_RADIUS_NORM])
+
+
+def extent_rows(points: np.ndarray) -> np.ndarray:
     """(3, 105): the length, width and height as differences of keypoint coordinates — the
     keypoints furthest front and back, out and up — whose posterior spreads stand for the
     extents' (the extents themselves are of curve samples between keypoints)."""

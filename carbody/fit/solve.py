@@ -832,6 +832,30 @@ def along_scale(solution: MixSolution, log_scale: float, slots: list[KeypointSlo
     return replace(solution, shape=shape, scale=scale, offset=offset, residual_px=np.linalg.norm(pred - z, axis=1))
 
 
+def along_keypoints(solution: MixSolution, rows: np.ndarray, step: float, variance: float,
+                    slots: list[KeypointSlot], uv: np.ndarray, view: View, point_indices: np.ndarray) -> MixSolution:
+    """The solution with the mean of f = ``rows`` (3·35,) · its keypoints moved by ``step``, f's
+    variance being ``variance`` (the fit's own and whatever else f's reading carries): the shape
+    moved as its posterior regresses it on f, by Cov(shape, f) · ``step`` / ``variance``. Where
+    the marks pin f, Cov(shape, f) is small and so is the move; where they do not, the move is
+    the prior's own. The offset and residuals are refitted to the marks (``slots``, ``uv``) at
+    ``view``."""
+    from dataclasses import replace
+
+    post = solution.posterior
+    w = post.keypoint_basis.T @ np.asarray(rows, dtype=float)
+    shrink = post.g ** 2 * post.e / (post.lam + post.g ** 2 * post.e)
+    cov_w = w - post.V @ (shrink * (post.V.T @ w))  # Σ·w, Σ as joint_keypoint_covariance builds it
+    spread = post.centres - post.weights @ post.centres
+    cov_w += (spread * post.weights[:, None]).T @ (spread @ w)
+    shape = solution.shape + post.scale_solve.basis @ cov_w * (post.inflation * step / variance)
+    kp = shape.reshape(-1, 3)[point_indices]
+    M, const = camera_rows(slots, view, kp)
+    z = np.asarray(uv, dtype=float)
+    offset, pred = _image_fit(M, kp, z, solution.scale, const)
+    return replace(solution, shape=shape, offset=offset, residual_px=np.linalg.norm(pred - z, axis=1))
+
+
 _SCALE_GRID = np.geomspace(0.1, 10.0, 21)  # the scale search's first grid, × the unregularised scale
 _SCALE_STEPS = np.linspace(0.0, 1.0, 17)  # … and each narrowing pass's, across the best bracket
 
