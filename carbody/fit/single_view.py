@@ -24,6 +24,7 @@ The algorithm, in :func:`fit_wireframe`:
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -40,8 +41,8 @@ from carbody.fit.robust import explains_poorly, left_out_in_turn, marks_noise, t
 from carbody.fit.search import distinct, refine, search_views, view_spread, with_roll
 from carbody.fit.shape_prior import prepared_field
 from carbody.fit.size import SizeEstimate, car_extents, estimate_size, extent_rows
-from carbody.fit.solve import (along_keypoints, along_scale, joint_keypoint_covariance, reaches_camera,
-                               scale_spread, scale_trade)
+from carbody.fit.solve import (MixSolution, along_keypoints, along_scale, joint_keypoint_covariance,
+                               reaches_camera, scale_spread, scale_trade)
 from carbody.fit.view_prior import ViewPrior
 from carbody.library import Library, check_library
 from carbody.policy import FitPolicy
@@ -328,24 +329,17 @@ def _sized(hypothesis: Hypothesis, size: SizeEstimate, policy: FitPolicy) -> Hyp
     """The hypothesis moved along the fit's trade with the image scale to where the published
     cars put it (:attr:`SizeEstimate.scale_steps`, :func:`~carbody.fit.solve.along_scale`): a
     level front view shows the width against the height, not against the wheelbase, and the
-    mix's width in wheelbases is then the table's to read. A move the marks see is halved
-    (``size_move_misfit``, ``size_move_halvings``); none is made that would put part of the car
-    through a close camera."""
+    mix's width in wheelbases is then the table's to read. The move is made as far as the marks
+    let it (:func:`_unseen_move`)."""
     sol = hypothesis.solution
     if not size.scale_steps or sol.posterior is None or sol.posterior.scale_solve is None:
         return hypothesis
     _, sd = scale_trade(sol.posterior)
-    log_scale = size.scale_steps * sd * np.sqrt(sol.posterior.inflation)
-    noise_px = np.sqrt(sol.posterior.lam) * sol.rho
-    before = float(np.mean(sol.residual_px))
-    for _ in range(policy.size_move_halvings + 1):
-        moved = along_scale(sol, log_scale, hypothesis.kept_slots, hypothesis.marks.uv[hypothesis.kept],
-                            hypothesis.view, load_topology().keypoint_point_indices)
-        if float(np.mean(moved.residual_px)) - before <= policy.size_move_misfit * noise_px \
-                and not reaches_camera(moved.shape, hypothesis.view):
-            return replace(hypothesis, solution=moved)
-        log_scale /= 2.0
-    return hypothesis
+    kept, uv, view = hypothesis.kept_slots, hypothesis.marks.uv[hypothesis.kept], hypothesis.view
+    indices = load_topology().keypoint_point_indices
+    moved, _ = _unseen_move(hypothesis, policy, size.scale_steps * sd * np.sqrt(sol.posterior.inflation),
+                            lambda log_scale: along_scale(sol, log_scale, kept, uv, view, indices))
+    return moved
 
 
 def _lengthened(hypothesis: Hypothesis, size: SizeEstimate, policy: FitPolicy) -> tuple[Hypothesis, float]:
@@ -354,9 +348,8 @@ def _lengthened(hypothesis: Hypothesis, size: SizeEstimate, policy: FitPolicy) -
     guess; the table (:attr:`SizeEstimate.dimensions_mm`) reads it from all the car's
     proportions, each as sure as the fit is of it. The shape moves as its posterior regresses it
     on the length, weighed against the length's variance as the size read it
-    (:func:`~carbody.fit.solve.along_keypoints`): marks that pin the length keep it. A move
-    the marks see is halved as the size's is (``size_move_misfit``, ``size_move_halvings``);
-    none is made that would put part of the car through a close camera."""
+    (:func:`~carbody.fit.solve.along_keypoints`): marks that pin the length keep it. The move is
+    made as far as the marks let it (:func:`_unseen_move`)."""
     sol = hypothesis.solution
     if size.dimensions_mm is None or size.proportion_covariance is None or sol.posterior is None \
             or sol.posterior.scale_solve is None or sol.shape is None:
@@ -366,17 +359,31 @@ def _lengthened(hypothesis: Hypothesis, size: SizeEstimate, policy: FitPolicy) -
     step = np.log(size.dimensions_mm["length"] / size.dimensions_mm["wheelbase"] * NORMALISED_WHEELBASE / length)
     rows = extent_rows(points)[0] / length  # the log length's change per keypoint coordinate
     variance = float(size.proportion_covariance[0, 0])  # the length's as the size read it
+    kept, uv, view = hypothesis.kept_slots, hypothesis.marks.uv[hypothesis.kept], hypothesis.view
+    indices = load_topology().keypoint_point_indices
+    moved, made = _unseen_move(hypothesis, policy, step,
+                               lambda amount: along_keypoints(sol, rows, amount, variance, kept, uv, view, indices))
+    if not made:
+        return hypothesis, 0.0
+    return moved, float(np.log(car_extents(moved.solution.shape.reshape(-1, 3))[0] / length))
+
+
+def _unseen_move(hypothesis: Hypothesis, policy: FitPolicy, amount: float,
+                 moved_by: Callable[[float], MixSolution]) -> tuple[Hypothesis, float]:
+    """(The hypothesis with the solution ``moved_by(amount)``, the amount made.) A move that
+    raises the marks' mean residual by more than ``size_move_misfit`` × their noise (√λ × their
+    spread, px) has left what the marks cannot tell (a close camera, marks no car fits): it is
+    halved, at most ``size_move_halvings`` times, and else not made (0). None is made that would
+    put part of the car through a close camera."""
+    sol = hypothesis.solution
     noise_px = np.sqrt(sol.posterior.lam) * sol.rho
     before = float(np.mean(sol.residual_px))
     for _ in range(policy.size_move_halvings + 1):
-        moved = along_keypoints(sol, rows, step, variance, hypothesis.kept_slots,
-                                hypothesis.marks.uv[hypothesis.kept], hypothesis.view,
-                                load_topology().keypoint_point_indices)
+        moved = moved_by(amount)
         if float(np.mean(moved.residual_px)) - before <= policy.size_move_misfit * noise_px \
                 and not reaches_camera(moved.shape, hypothesis.view):
-            after = car_extents(moved.shape.reshape(-1, 3))[0]
-            return replace(hypothesis, solution=moved), float(np.log(after / length))
-        step /= 2.0
+            return replace(hypothesis, solution=moved), amount
+        amount /= 2.0
     return hypothesis, 0.0
 
 

@@ -820,11 +820,17 @@ def along_scale(solution: MixSolution, log_scale: float, slots: list[KeypointSlo
     scale times exp(``log_scale``), the shape moved as the solve would have moved it there, the
     offset and residuals refitted to the marks (``slots``, ``uv``) at ``view``. The marks see
     the move only to second order: it is what they cannot tell."""
-    from dataclasses import replace
-
     slope, _ = scale_trade(solution.posterior)
     shape = solution.shape + solution.posterior.scale_solve.basis @ slope * log_scale
-    scale = solution.scale * float(np.exp(log_scale))
+    return _refitted(solution, shape, solution.scale * float(np.exp(log_scale)), slots, uv, view, point_indices)
+
+
+def _refitted(solution: MixSolution, shape: np.ndarray, scale: float, slots: list[KeypointSlot], uv: np.ndarray,
+              view: View, point_indices: np.ndarray) -> MixSolution:
+    """The solution with a moved ``shape`` (840,) at image ``scale``, its offset and residuals
+    refitted to the marks (``slots``, ``uv``) at ``view``."""
+    from dataclasses import replace
+
     kp = shape.reshape(-1, 3)[point_indices]
     M, const = camera_rows(slots, view, kp)
     z = np.asarray(uv, dtype=float)
@@ -840,8 +846,6 @@ def along_keypoints(solution: MixSolution, rows: np.ndarray, step: float, varian
     the marks pin f, Cov(shape, f) is small and so is the move; where they do not, the move is
     the prior's own. The offset and residuals are refitted to the marks (``slots``, ``uv``) at
     ``view``."""
-    from dataclasses import replace
-
     post = solution.posterior
     w = post.keypoint_basis.T @ np.asarray(rows, dtype=float)
     shrink = post.g ** 2 * post.e / (post.lam + post.g ** 2 * post.e)
@@ -849,11 +853,7 @@ def along_keypoints(solution: MixSolution, rows: np.ndarray, step: float, varian
     spread = post.centres - post.weights @ post.centres
     cov_w += (spread * post.weights[:, None]).T @ (spread @ w)
     shape = solution.shape + post.scale_solve.basis @ cov_w * (post.inflation * step / variance)
-    kp = shape.reshape(-1, 3)[point_indices]
-    M, const = camera_rows(slots, view, kp)
-    z = np.asarray(uv, dtype=float)
-    offset, pred = _image_fit(M, kp, z, solution.scale, const)
-    return replace(solution, shape=shape, offset=offset, residual_px=np.linalg.norm(pred - z, axis=1))
+    return _refitted(solution, shape, solution.scale, slots, uv, view, point_indices)
 
 
 _SCALE_GRID = np.geomspace(0.1, 10.0, 21)  # the scale search's first grid, × the unregularised scale
