@@ -132,6 +132,10 @@ with its marks when there is no body), desaturated, with the human polygons fill
 projected regions outlined in the same colour per part (windshield yellow, rear window green,
 hood magenta), the annotated wheel centres as white dots joined to their projected centres
 (orange crosses), and the photo's name, outcome, view found / estimated and IoUs written above.
+The wheel sheet (``OUT/wheel_sheet.png``) has a tile per annotated wheel of a photo with a body:
+the photo round the people's polygon, its centroid, the fitted hub matched to it, the hub the fit
+found there and trusted, and the centroid's distance from both. It shows a person where the hub
+lies against the centroid the wheel measure takes.
 """
 from __future__ import annotations
 
@@ -1329,16 +1333,20 @@ def contact_sheet(photos: list[Photo], rows: list[dict], out: Path, columns: int
     """Every photo's tile in one picture, ``OUT/contact_sheet.png``."""
     import cv2
 
-    tiles = [draw_tile(p, r, out) for p, r in zip(photos, rows)]
-    columns = max(1, min(columns, len(tiles)))
-    blank = np.zeros_like(tiles[0])
-    tiles += [blank] * (-len(tiles) % columns)
-    grid = np.vstack([np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)])
+    grid = tiled([draw_tile(p, r, out) for p, r in zip(photos, rows)], columns)
     sheet = np.vstack([legend(grid.shape[1]), grid])
     path = out / "contact_sheet.png"
     if not cv2.imwrite(str(path), sheet):
         raise OSError(f"{path}: cannot write the contact sheet")
     return path
+
+
+def tiled(tiles: list[np.ndarray], columns: int) -> np.ndarray:
+    """Equal tiles in rows of ``columns`` (fewer when there are fewer), the last row filled out
+    with black."""
+    columns = max(1, min(columns, len(tiles)))
+    tiles = tiles + [np.zeros_like(tiles[0])] * (-len(tiles) % columns)
+    return np.vstack([np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)])
 
 
 #: A wheel sheet tile's side (px) and how far its crop reaches round the polygon (its box's sides).
@@ -1396,10 +1404,8 @@ def wheel_sheet(photos: list[Photo], rows: list[dict], out: Path, columns: int =
     tiles = [t for p, r in zip(photos, rows) for t in wheel_tiles(p, r, out)]
     if not tiles:
         return None
-    columns = max(1, min(columns, len(tiles)))
-    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % columns)
     path = out / "wheel_sheet.png"
-    if not cv2.imwrite(str(path), np.vstack([np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)])):
+    if not cv2.imwrite(str(path), tiled(tiles, columns)):
         raise OSError(f"{path}: cannot write the wheel sheet")
     return path
 
