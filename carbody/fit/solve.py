@@ -756,16 +756,22 @@ def keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     return cov.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :]
 
 
+def coefficient_covariance_times(posterior: ShapePosterior, w: np.ndarray) -> np.ndarray:
+    """Σ·``w`` ((q,) or (q, k)): the shape coefficients' posterior covariance (the class
+    docstring's Σ, the centres' spread about their mean added; before ``inflation``) times w."""
+    shrink = posterior.g ** 2 * posterior.e / (posterior.lam + posterior.g ** 2 * posterior.e)
+    shrink = shrink.reshape(-1, *([1] * (np.ndim(w) - 1)))
+    out = w - posterior.V @ (shrink * (posterior.V.T @ w))
+    spread = posterior.centres - posterior.weights @ posterior.centres
+    return out + (spread * posterior.weights[:, None]).T @ (spread @ w)
+
+
 def joint_keypoint_covariance(posterior: ShapePosterior) -> np.ndarray:
     """(3·35, 3·35) float: the posterior covariance of all the keypoints' coordinates together
     (x1, y1, z1, x2, …), normalised units²: what :func:`keypoint_covariance` gives per keypoint,
     with the keypoints' covariances with each other (a length's spread is that of a difference)."""
     Bk = posterior.keypoint_basis
-    BV = Bk @ posterior.V
-    shrink = posterior.g ** 2 * posterior.e / (posterior.lam + posterior.g ** 2 * posterior.e)
-    cov = Bk @ Bk.T - (BV * shrink) @ BV.T
-    spread = (posterior.centres - posterior.weights @ posterior.centres) @ Bk.T
-    cov += (spread * posterior.weights[:, None]).T @ spread
+    cov = Bk @ coefficient_covariance_times(posterior, Bk.T)
     if posterior.scale_solve is not None:
         move = scale_spread(posterior)
         cov += np.outer(move, move)
@@ -847,11 +853,7 @@ def along_keypoints(solution: MixSolution, rows: np.ndarray, step: float, varian
     the prior's own. The offset and residuals are refitted to the marks (``slots``, ``uv``) at
     ``view``."""
     post = solution.posterior
-    w = post.keypoint_basis.T @ np.asarray(rows, dtype=float)
-    shrink = post.g ** 2 * post.e / (post.lam + post.g ** 2 * post.e)
-    cov_w = w - post.V @ (shrink * (post.V.T @ w))  # Σ·w, Σ as joint_keypoint_covariance builds it
-    spread = post.centres - post.weights @ post.centres
-    cov_w += (spread * post.weights[:, None]).T @ (spread @ w)
+    cov_w = coefficient_covariance_times(post, post.keypoint_basis.T @ np.asarray(rows, dtype=float))
     shape = solution.shape + post.scale_solve.basis @ cov_w * (post.inflation * step / variance)
     return _refitted(solution, shape, solution.scale, slots, uv, view, point_indices)
 
